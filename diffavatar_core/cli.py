@@ -1,0 +1,35 @@
+"""`diffavatar`: command line of the DiffAvatar core. Each sub-command lives in
+diffavatar_core/commands/<name>.py; `diffavatar --help` lists them."""
+from __future__ import annotations
+
+import argparse
+import importlib
+import pkgutil
+import sys
+
+from . import commands
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="diffavatar", description=__doc__)
+    p.add_argument("--threads", type=int, default=None, help="OpenMP threads of the C++ core")
+    sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for info in sorted(pkgutil.iter_modules(commands.__path__), key=lambda i: i.name):
+        importlib.import_module(f"{commands.__name__}.{info.name}").register(sub)
+    return p
+
+
+def main(argv=None) -> int:
+    args = build_parser().parse_args(argv)
+    from . import set_num_threads
+    try:
+        if args.threads is not None:
+            set_num_threads(args.threads)
+        return int(args.func(args) or 0)
+    except (ValueError, FileNotFoundError) as exc:
+        print(f"diffavatar: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,76 @@
+#!/usr/bin/env bash
+# Bring the project-local environment up to date, doing only what is missing or stale:
+#   1. .venv with the pinned Python requirements (ROS 2 Jazzy wheels, numpy, ..., Eigen headers)
+#   2. the two ROS-wheel fix-ups (CMake paths; see shared/notes/ros2-jazzy-from-pypi.md)
+#   3. the interface package msg/ (diffavatar_msgs) built with colcon into .venv
+#   4. the C++ extension diffavatar_core._core (CMake + Ninja, -O3 -DNDEBUG, OpenMP)
+#   5. the project installed into .venv in editable mode (console script `diffavatar`)
+# Each step is keyed by a hash of its inputs, stored in .venv/.stamps; a second run with
+# nothing changed only asks Ninja whether anything is out of date.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+ROOT=$(pwd)
+PY=${PYTHON:-python3}
+VENV=$ROOT/.venv
+STAMPS=$VENV/.stamps
+t0=$(date +%s%N)
+
+say() { printf '[setup] %s\n' "$*"; }
+hash_of() { cat "$@" | sha256sum | cut -c1-16; }
+stamp_ok() { [ -f "$STAMPS/$1" ] && [ "$(cat "$STAMPS/$1")" = "$2" ]; }
+stamp_set() { mkdir -p "$STAMPS"; echo "$2" > "$STAMPS/$1"; }
+
+# 1. virtualenv + pinned requirements
+if [ ! -x "$VENV/bin/python" ]; then
+  say "creating .venv with $($PY --version 2>&1)"
+  "$PY" -m venv "$VENV"
+fi
+req_hash=$(hash_of requirements.txt constraints.txt)
+if ! stamp_ok requirements "$req_hash"; then
+  say "installing pinned requirements (about a minute on a fresh machine)"
+  "$VENV/bin/python" -m pip install --quiet --disable-pip-version-check \
+      -r requirements.txt -c constraints.txt
+  # 2. fix-up 1: exported CMake files point at the wheels' build interpreter
+  "$VENV/bin/python" scripts/fix_ros_cmake_paths.py "$VENV"
+  rm -f "$STAMPS/msgs" "$STAMPS/editable"
+  stamp_set requirements "$req_hash"
+fi
+
+# 3. interfaces (fix-up 2, a realistic maintainer e-mail, is in msg/package.xml itself)
+msg_hash=$(hash_of msg/package.xml msg/CMakeLists.txt $(find msg -name '*.msg' -o -name '*.action' | sort))
+if ! stamp_ok msgs "$msg_hash"; then
+  say "building interface package diffavatar_msgs with colcon"
+  mkdir -p build
+  if ! env VIRTUAL_ENV="$VENV" PATH="$VENV/bin:$PATH" \
+         AMENT_PREFIX_PATH="$VENV" CMAKE_PREFIX_PATH="$VENV" \
+       colcon --log-base build/colcon/log build --paths msg \
+         --merge-install --install-base "$VENV" --build-base build/colcon \
+         --cmake-args -DBUILD_TESTING=OFF -DPython3_EXECUTABLE="$VENV/bin/python" \
+       > build/colcon.log 2>&1; then
+    tail -40 build/colcon.log; say "colcon failed (full log: build/colcon.log)"; exit 1
+  fi
+  stamp_set msgs "$msg_hash"
+fi
+
+# 4. C++ extension: configure once, then let Ninja decide what to rebuild
+mkdir -p build
+if [ ! -f build/core/build.ninja ]; then
+  say "configuring the C++ core (Release, OpenMP)"
+  cmake -S diffavatar_core -B build/core -G Ninja -DCMAKE_BUILD_TYPE=Release \
+        -DPython_EXECUTABLE="$VENV/bin/python" > build/core-configure.log 2>&1 \
+    || { cat build/core-configure.log; exit 1; }
+fi
+if ! cmake --build build/core -- -j"$(nproc)" > build/core-build.log 2>&1; then
+  cat build/core-build.log; say "C++ build failed (log: build/core-build.log)"; exit 1
+fi
+grep -q 'no work to do' build/core-build.log || say "C++ core rebuilt ($(grep -c 'Building CXX' build/core-build.log) file(s))"
+
+# 5. editable install (entry points); only when setup.py changes
+setup_hash=$(hash_of setup.py)
+if ! stamp_ok editable "$setup_hash"; then
+  say "installing the project into .venv (editable)"
+  DIFFAVATAR_SKIP_CMAKE=1 "$VENV/bin/python" -m pip install --quiet --disable-pip-version-check \
+      --no-deps --no-build-isolation -e .
+  stamp_set editable "$setup_hash"
+fi
+say "ready in $(( ($(date +%s%N) - t0) / 1000000 )) ms"
