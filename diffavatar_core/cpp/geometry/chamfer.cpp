@@ -21,7 +21,7 @@ void chunked_parallel(Eigen::Index n, const char* stage, RunControl& rc, Query&&
     const Eigen::Index end = std::min(n, begin + kChunk);
 #pragma omp parallel for schedule(static)
     for (Eigen::Index i = begin; i < end; ++i) query(i);
-    rc.report({stage, static_cast<long>(end), static_cast<long>(n), std::nan("")});
+    rc.report({stage, static_cast<long>(end), static_cast<long>(n), std::nan("")}, end == n);
   }
 }
 
