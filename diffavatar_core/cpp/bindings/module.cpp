@@ -10,12 +10,14 @@ namespace py = pybind11;
 namespace diffavatar {
 void bind_common(py::module_& m);
 void bind_geometry(py::module_& m);
+void bind_loss(py::module_& m);
 }  // namespace diffavatar
 
 PYBIND11_MODULE(_core, m) {
   m.doc() = "DiffAvatar C++ core (C++17, Eigen, OpenMP). Use it through diffavatar_core.";
   diffavatar::bind_common(m);
   diffavatar::bind_geometry(m);
+  diffavatar::bind_loss(m);
   m.def("openmp_max_threads", []() {
 #ifdef _OPENMP
     return omp_get_max_threads();

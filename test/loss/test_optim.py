@@ -1,0 +1,60 @@
+"""The outer optimizer: convergence on badly scaled groups, rejection of invalid steps, best
+iterate kept, cancellation."""
+import numpy as np
+import pytest
+
+from diffavatar_core.optim import GroupAdam, minimize
+
+
+def _quadratic(scale):
+    target = {"a": np.array([1.0, -2.0]), "b": np.array([3e-3])}
+
+    def evaluate(p):
+        ra, rb = p["a"] - target["a"], (p["b"] - target["b"]) / scale
+        value = float(ra @ ra + rb @ rb)
+        return value, {"a": 2 * ra, "b": 2 * rb / scale}, {"a": float(ra @ ra), "b": float(rb @ rb)}
+    return evaluate, target
+
+
+def test_converges_on_groups_with_different_scales():
+    evaluate, target = _quadratic(scale=1e-3)
+    res = minimize(evaluate, {"a": np.zeros(2), "b": np.zeros(1)}, {"a": 0.1, "b": 1e-4},
+                   max_iterations=2000, rel_tol=1e-10, patience=50)
+    np.testing.assert_allclose(res.params["a"], target["a"], atol=1e-3)
+    np.testing.assert_allclose(res.params["b"], target["b"], atol=1e-6)
+    values = [h["value"] for h in res.history]
+    assert res.value == min(values) and res.value < 1e-5 * values[0]
+
+
+def test_invalid_proposals_are_rejected_and_step_sizes_shrink():
+    evaluate, _ = _quadratic(scale=1.0)
+
+    def constrained(p):  # the region a[0] > 0.5 is 'invalid' (e.g. an inverted rest triangle)
+        if p["a"][0] > 0.5:
+            raise ValueError("inverted triangle")
+        return evaluate(p)
+
+    seen = []
+    res = minimize(constrained, {"a": np.zeros(2), "b": np.zeros(1)}, {"a": 0.3, "b": 0.3},
+                   max_iterations=200, on_iteration=seen.append)
+    assert res.rejected > 0
+    assert all(h["lr"]["a"] <= 0.3 for h in seen) and seen[-1]["lr"]["a"] < 0.3
+    assert res.params["a"][0] <= 0.5  # never left the valid region
+    assert res.value == min(h["value"] for h in res.history)
+
+
+def test_cancel_returns_the_best_iterate_so_far():
+    evaluate, _ = _quadratic(scale=1.0)
+    calls = []
+    res = minimize(evaluate, {"a": np.zeros(2), "b": np.zeros(1)}, {"a": 0.1, "b": 0.1},
+                   max_iterations=100, on_iteration=calls.append, cancelled=lambda: len(calls) >= 4)
+    assert res.stopped == "cancelled" and res.iterations == 3
+    assert res.value == min(h["value"] for h in res.history)
+
+
+def test_non_finite_gradient_and_bad_step_sizes_are_errors():
+    with pytest.raises(ValueError, match="lr"):
+        GroupAdam({"a": 0.0})
+    opt = GroupAdam({"a": 0.1})
+    with pytest.raises(FloatingPointError, match="a"):
+        opt.propose({"a": np.zeros(2)}, {"a": np.array([np.nan, 0])})
