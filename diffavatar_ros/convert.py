@@ -62,3 +62,131 @@ def msg_to_arrays(msg: SegmentedScan) -> dict:
         "template_name": msg.template_name,
         "iterations": int(msg.iterations),
     }
+
+
+# --- results -------------------------------------------------------------------------------
+
+def _f32(a) -> np.ndarray:
+    return np.ascontiguousarray(np.asarray(a, dtype=np.float32).ravel())
+
+
+def _u32(a) -> np.ndarray:
+    return np.ascontiguousarray(np.asarray(a, dtype=np.uint32).ravel())
+
+
+def _f64(a) -> np.ndarray:
+    return np.ascontiguousarray(np.asarray(a, dtype=np.float64).ravel())
+
+
+def flat_mesh(vertices, faces, uvs=None):
+    from diffavatar_msgs.msg import FlatMesh
+    m = FlatMesh()
+    m.vertices, m.faces = _f32(vertices), _u32(faces)
+    if uvs is not None:
+        m.uvs = _f32(uvs)
+    return m
+
+
+def error_code(name: str) -> int:
+    """AvatarAssets.ERROR_<name>, or ERROR_INTERNAL for a name the interface does not know."""
+    from diffavatar_msgs.msg import AvatarAssets
+    return int(getattr(AvatarAssets, f"ERROR_{name}", AvatarAssets.ERROR_INTERNAL))
+
+
+def error_assets(job_id: str, code: str, message: str):
+    """AvatarAssets carrying only an error (code name as in AvatarAssets.ERROR_*)."""
+    from diffavatar_msgs.msg import AvatarAssets
+    msg = AvatarAssets()
+    msg.job_id, msg.error_code, msg.error_msg = job_id, error_code(code), message
+    return msg
+
+
+def result_to_assets(job_id: str, result) -> "AvatarAssets":
+    """AvatarAssets from a diffavatar_core.pipeline.result.RecoveryResult (SI units kept)."""
+    from diffavatar_msgs.msg import AvatarAssets
+    msg = AvatarAssets()
+    msg.job_id, msg.error_code = job_id, AvatarAssets.ERROR_NONE
+    msg.garment_type, msg.template_name = result.garment_type, result.template_name
+    p = result.pattern
+    msg.pattern.rest_xy = _f64(p.rest_xy)
+    msg.pattern.triangles = _u32(p.triangles)
+    msg.pattern.panel_vertex_start = _u32(p.panel_vertex_start)
+    msg.pattern.panel_names = [str(n) for n in p.panel_names]
+    msg.pattern.panel_grain_rad = _f64(p.panel_grain_rad)
+    msg.pattern.seam_pairs = _u32(p.seam_pairs)
+    msg.pattern.handles = _u32(p.handles)
+    m = result.material
+    msg.material.bending_stiffness = float(m.bending_stiffness)
+    msg.material.panel_bending_stiffness = _f64(m.panel_bending_stiffness)
+    msg.material.compliance_warp = float(m.compliance_warp)
+    msg.material.compliance_weft = float(m.compliance_weft)
+    msg.material.compliance_shear = float(m.compliance_shear)
+    msg.material.density = float(m.density)
+    msg.material.thickness = float(m.thickness)
+    b = result.body
+    msg.body.model_id = b.model_id
+    msg.body.shape = _f64(b.shape)
+    msg.body.joint_names = [str(n) for n in b.joint_names]
+    msg.body.pose = _f64(b.pose)
+    msg.body.bone_scales = _f64(b.bone_scales)
+    msg.body.global_transform = _f64(b.global_transform)
+    msg.garment_draped = flat_mesh(result.garment_vertices, result.garment_faces, result.garment_uv)
+    msg.body_mesh = flat_mesh(result.body_vertices, result.body_faces)
+    mt = result.metrics
+    msg.chamfer_initial_cm = float(mt.get("chamfer_initial_cm", float("nan")))
+    msg.chamfer_final_cm = float(mt.get("chamfer_final_cm", float("nan")))
+    msg.mesh_quality_min = float(mt.get("mesh_quality_min", float("nan")))
+    msg.mesh_quality_avg = float(mt.get("mesh_quality_avg", float("nan")))
+    msg.seam_length_mismatch_max_pct = float(mt.get("seam_length_mismatch_max_pct", float("nan")))
+    msg.iterations = int(result.iterations)
+    msg.wall_s = float(result.wall_s)
+    msg.output_dir = str(result.output_dir or "")
+    return msg
+
+
+def assets_to_arrays(msg) -> dict:
+    """The bulk arrays of an AvatarAssets as shaped numpy arrays (for clients and tests)."""
+    p = msg.pattern
+    return {
+        "rest_xy": np.frombuffer(p.rest_xy, np.float64).reshape(-1, 2),
+        "triangles": np.frombuffer(p.triangles, np.uint32).reshape(-1, 3),
+        "panel_vertex_start": np.frombuffer(p.panel_vertex_start, np.uint32),
+        "seam_pairs": np.frombuffer(p.seam_pairs, np.uint32).reshape(-1, 2),
+        "handles": np.frombuffer(p.handles, np.uint32),
+        "garment_vertices": np.frombuffer(msg.garment_draped.vertices, np.float32).reshape(-1, 3),
+        "garment_faces": np.frombuffer(msg.garment_draped.faces, np.uint32).reshape(-1, 3),
+        "garment_uv": np.frombuffer(msg.garment_draped.uvs, np.float32).reshape(-1, 2),
+        "body_vertices": np.frombuffer(msg.body_mesh.vertices, np.float32).reshape(-1, 3),
+        "body_faces": np.frombuffer(msg.body_mesh.faces, np.uint32).reshape(-1, 3),
+        "shape": np.frombuffer(msg.body.shape, np.float64),
+        "pose": np.frombuffer(msg.body.pose, np.float64).reshape(-1, 3),
+    }
+
+
+def progress_msg(job_id: str, stage: str, iteration: int, max_iterations: int, loss: float,
+                 terms: dict, elapsed_s: float, eta_s: float):
+    from diffavatar_msgs.msg import OptimizationProgress
+    m = OptimizationProgress()
+    m.job_id, m.stage = job_id, stage
+    m.iteration, m.max_iterations = int(iteration), int(max_iterations)
+    m.loss = float(loss)
+    m.loss_term_names = list(terms)
+    m.loss_terms = _f64([terms[k] for k in terms])
+    m.elapsed_s, m.eta_s = float(elapsed_s), float(eta_s)
+    return m
+
+
+def mesh_to_shape_msgs(vertices, faces):
+    """shape_msgs/Mesh for interoperability only (slow in rclpy: one Python object per vertex)."""
+    from geometry_msgs.msg import Point
+    from shape_msgs.msg import Mesh, MeshTriangle
+    m = Mesh()
+    m.vertices = [Point(x=float(x), y=float(y), z=float(z)) for x, y, z in np.asarray(vertices, float)]
+    m.triangles = [MeshTriangle(vertex_indices=[int(a), int(b), int(c)]) for a, b, c in np.asarray(faces)]
+    return m
+
+
+def shape_msgs_to_mesh(msg) -> tuple[np.ndarray, np.ndarray]:
+    V = np.array([[p.x, p.y, p.z] for p in msg.vertices], dtype=np.float64).reshape(-1, 3)
+    F = np.array([list(t.vertex_indices) for t in msg.triangles], dtype=np.int64).reshape(-1, 3)
+    return V, F

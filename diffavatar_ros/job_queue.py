@@ -53,6 +53,7 @@ class Job:
     started: float | None = None
     finished: float | None = None
     done: threading.Event = field(default_factory=threading.Event)
+    result_msg: Any = None  # filled by the node: the AvatarAssets answered for this job
 
 
 class JobQueue:
