@@ -1,0 +1,182 @@
+// Bindings: cloth model / control / state, the XPBD solver and drape, energies, and the
+// equilibrium adjoint. The Python layer (diffavatar_core/sim.py) validates arrays first.
+#include <pybind11/eigen.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include "adjoint/equilibrium_adjoint.hpp"
+#include "bindings/py_run_control.hpp"
+#include "sim/cloth_energy.hpp"
+#include "sim/xpbd_solver.hpp"
+
+namespace py = pybind11;
+
+namespace diffavatar {
+
+void bind_sim(py::module_& m) {
+  py::class_<ClothModel, std::shared_ptr<ClothModel>>(m, "ClothModel")
+      .def_readonly("num_vertices", &ClothModel::num_vertices)
+      .def_readonly("faces", &ClothModel::faces)
+      .def_readonly("hinges", &ClothModel::hinges)
+      .def_readonly("seams", &ClothModel::seams)
+      .def_readonly("mass", &ClothModel::mass)
+      .def_readonly("inv_mass", &ClothModel::inv_mass)
+      .def_readonly("num_groups", &ClothModel::num_groups)
+      .def_readonly("thickness", &ClothModel::thickness)
+      .def_readonly("contact_stiffness", &ClothModel::contact_stiffness)
+      .def_readonly("seam_compliance", &ClothModel::seam_compliance)
+      .def_property_readonly("num_colors", [](const ClothModel& c) {
+        return py::make_tuple(c.tri_colors.size(), c.hinge_colors.size(), c.seam_colors.size());
+      });
+
+  m.def("build_cloth_model",
+        [](int nv, const RefX3i& F, const RefX2d& rest, const VecXi& groups, const RefX2i& seams,
+           const std::vector<int>& pinned, const RefX3i& body_faces, double density, double thickness,
+           double contact_stiffness, double seam_compliance) {
+          return build_cloth_model(nv, F, rest, groups, seams, pinned, body_faces, density, thickness,
+                                   contact_stiffness, seam_compliance);
+        },
+        py::arg("num_vertices"), py::arg("faces"), py::arg("rest"), py::arg("tri_group"), py::arg("seams"),
+        py::arg("pinned"), py::arg("body_faces"), py::arg("density"), py::arg("thickness"),
+        py::arg("contact_stiffness"), py::arg("seam_compliance"), py::call_guard<py::gil_scoped_release>());
+
+  py::class_<ClothControl>(m, "ClothControl")
+      .def(py::init<>())
+      .def(py::init([](RowMatX2d rest, RowMatX3d sc, VecXd kb, RowMatX3d body) {
+             return ClothControl{std::move(rest), std::move(sc), std::move(kb), std::move(body)};
+           }),
+           py::arg("rest"), py::arg("stretch_compliance"), py::arg("bend_stiffness"), py::arg("body_vertices"))
+      .def_readwrite("rest", &ClothControl::rest)
+      .def_readwrite("stretch_compliance", &ClothControl::stretch_compliance)
+      .def_readwrite("bend_stiffness", &ClothControl::bend_stiffness)
+      .def_readwrite("body_vertices", &ClothControl::body_vertices);
+
+  // State arrays are exposed as writable numpy views into the C++ state (no copies).
+  py::class_<ClothState>(m, "ClothState")
+      .def_property("x", [](ClothState& s) { return Eigen::Ref<RowMatX3d>(s.x); },
+                    [](ClothState& s, const RowMatX3d& x) {
+                      if (x.rows() != s.x.rows()) throw std::invalid_argument("x must keep its shape");
+                      s.x = x;
+                    },
+                    py::return_value_policy::reference_internal)
+      .def_property("v", [](ClothState& s) { return Eigen::Ref<RowMatX3d>(s.v); },
+                    [](ClothState& s, const RowMatX3d& v) {
+                      if (v.rows() != s.v.rows()) throw std::invalid_argument("v must keep its shape");
+                      s.v = v;
+                    },
+                    py::return_value_policy::reference_internal)
+      .def_property_readonly("lambda_tri", [](ClothState& s) { return Eigen::Ref<RowMatX3d>(s.lambda_tri); },
+                             py::return_value_policy::reference_internal)
+      .def("copy", [](const ClothState& s) { return ClothState(s); });
+
+  py::class_<SimParams>(m, "SimParams")
+      .def(py::init<>())
+      .def_readwrite("dt", &SimParams::dt)
+      .def_readwrite("iterations", &SimParams::iterations)
+      .def_readwrite("gravity", &SimParams::gravity)
+      .def_readwrite("damping", &SimParams::damping)
+      .def_readwrite("contact_radius", &SimParams::contact_radius)
+      .def_readwrite("max_speed", &SimParams::max_speed);
+
+  py::class_<DrapeParams>(m, "DrapeParams")
+      .def(py::init<>())
+      .def_readwrite("max_steps", &DrapeParams::max_steps)
+      .def_readwrite("min_steps", &DrapeParams::min_steps)
+      .def_readwrite("speed_tol", &DrapeParams::speed_tol)
+      .def_readwrite("refine", &DrapeParams::refine)
+      .def_readwrite("residual_tol", &DrapeParams::residual_tol)
+      .def_readwrite("refine_iterations", &DrapeParams::refine_iterations)
+      .def_readwrite("anchor_stiffness", &DrapeParams::anchor_stiffness);
+
+  py::class_<DrapeReport>(m, "DrapeReport")
+      .def_readonly("converged", &DrapeReport::converged)
+      .def_readonly("settled", &DrapeReport::settled)
+      .def_readonly("diverged", &DrapeReport::diverged)
+      .def_readonly("steps", &DrapeReport::steps)
+      .def_readonly("refine_iterations", &DrapeReport::refine_iterations)
+      .def_readonly("max_speed", &DrapeReport::max_speed)
+      .def_readonly("residual", &DrapeReport::residual)
+      .def_readonly("max_penetration", &DrapeReport::max_penetration)
+      .def_readonly("wall_s", &DrapeReport::wall_s)
+      .def_readonly("message", &DrapeReport::message);
+
+  py::class_<XpbdSolver>(m, "XpbdSolver")
+      .def(py::init<ClothModel, ClothControl>(), py::arg("model"), py::arg("control"))
+      .def_property_readonly("model", &XpbdSolver::model, py::return_value_policy::reference_internal)
+      .def_property_readonly("control", &XpbdSolver::control)
+      .def("set_control", &XpbdSolver::set_control, py::arg("control"), py::call_guard<py::gil_scoped_release>())
+      .def("make_state", &XpbdSolver::make_state, py::arg("x"))
+      .def("step",
+           [](XpbdSolver& s, ClothState& st, const SimParams& p, int n) {
+             double v = 0;
+             for (int i = 0; i < n; ++i) v = s.step(st, p);
+             return v;
+           },
+           py::arg("state"), py::arg("params"), py::arg("n") = 1, py::call_guard<py::gil_scoped_release>())
+      .def("sweep",
+           [](XpbdSolver& s, ClothState& st, double dt, int n) {
+             for (int i = 0; i < n; ++i) s.sweep(st, dt);
+           },
+           py::arg("state"), py::arg("dt"), py::arg("n") = 1, py::call_guard<py::gil_scoped_release>())
+      .def("detect_contacts", &XpbdSolver::detect_contacts, py::arg("x"), py::arg("params"),
+           py::call_guard<py::gil_scoped_release>())
+      .def("drape",
+           [](XpbdSolver& s, ClothState& st, const SimParams& p, const DrapeParams& d, const py::object& progress,
+              std::shared_ptr<CancelToken> cancel) {
+             RunControl rc = make_run_control(progress, cancel);
+             py::gil_scoped_release nogil;
+             return s.drape(st, p, d, rc);
+           },
+           py::arg("state"), py::arg("params"), py::arg("drape_params"), py::arg("progress") = py::none(),
+           py::arg("cancel") = nullptr)
+      .def("refine",
+           [](XpbdSolver& s, ClothState& st, const SimParams& p, const DrapeParams& d, bool keep_anchor,
+              bool keep_contacts, const py::object& progress, std::shared_ptr<CancelToken> cancel) {
+             RunControl rc = make_run_control(progress, cancel);
+             py::gil_scoped_release nogil;
+             double res = 0;
+             int it = s.refine(st, p, d, rc, &res, keep_anchor, keep_contacts);
+             return std::make_pair(it, res);
+           },
+           py::arg("state"), py::arg("params"), py::arg("drape_params"), py::arg("keep_anchor") = false,
+           py::arg("keep_contacts") = false, py::arg("progress") = py::none(), py::arg("cancel") = nullptr)
+      .def("residual", &XpbdSolver::residual, py::arg("x"), py::arg("gravity"))
+      .def("max_penetration", &XpbdSolver::max_penetration, py::arg("x"))
+      .def_property_readonly("num_contacts", [](const XpbdSolver& s) { return s.contacts().size(); })
+      .def("energy",
+           [](const XpbdSolver& s, const RowMatX3d& x, const Vec3& g) {
+             return total_energy(s.energy_context(g), x);
+           },
+           py::arg("x"), py::arg("gravity"))
+      .def("energy_gradient",
+           [](const XpbdSolver& s, const RowMatX3d& x, const Vec3& g) {
+             return energy_gradient(s.energy_context(g), x);
+           },
+           py::arg("x"), py::arg("gravity"));
+
+  m.def("equilibrium_adjoint",
+        [](const XpbdSolver& s, const RowMatX3d& x, const RowMatX3d& dphi, const Vec3& g, const py::object& progress,
+           std::shared_ptr<CancelToken> cancel) {
+          RunControl rc = make_run_control(progress, cancel);
+          AdjointReport rep;
+          ControlGradient cg;
+          {
+            py::gil_scoped_release nogil;
+            cg = equilibrium_adjoint(s, x, dphi, g, rc, &rep);
+          }
+          py::dict d;
+          d["rest"] = cg.rest;
+          d["stretch_compliance"] = cg.stretch_compliance;
+          d["bend_stiffness"] = cg.bend_stiffness;
+          d["body_vertices"] = cg.body_vertices;
+          d["solve_residual"] = rep.solve_residual;
+          d["dofs"] = rep.dofs;
+          d["wall_s"] = rep.wall_s;
+          d["mu"] = rep.mu;
+          return d;
+        },
+        py::arg("solver"), py::arg("x"), py::arg("dphi_dx"), py::arg("gravity"), py::arg("progress") = py::none(),
+        py::arg("cancel") = nullptr);
+}
+
+}  // namespace diffavatar

@@ -1,0 +1,287 @@
+#include "sim/cloth_energy.hpp"
+
+#include <Eigen/Eigenvalues>
+
+#include "autodiff/jet.hpp"
+#include "sim/bending_kernel.hpp"
+#include "sim/contact_kernel.hpp"
+#include "sim/seam_kernel.hpp"
+#include "sim/stretch_kernel.hpp"
+
+namespace diffavatar {
+namespace {
+
+template <class T>
+V3<T> var3(const RowMatX3d& X, int i, int off) {
+  return {T::var(X(i, 0), off), T::var(X(i, 1), off + 1), T::var(X(i, 2), off + 2)};
+}
+
+// Triangle: Q_a = ½ Ā ε_a² as jets over z = [x0 x1 x2 (9) | ū0 ū1 ū2 (6 if NZ = 15)];
+// E = Σ_a Q_a / α_a.
+template <int NZ>
+std::array<Jet<NZ>, 3> tri_terms(const EnergyContext& c, const RowMatX3d& x, int t) {
+  using J = Jet<NZ>;
+  V3<J> xs[3];
+  J u[3][2];
+  for (int k = 0; k < 3; ++k) {
+    int i = c.model.faces(t, k);
+    xs[k] = var3<J>(x, i, 3 * k);
+    for (int d = 0; d < 2; ++d)
+      u[k][d] = NZ == 15 ? J::var(c.control.rest(i, d), 9 + 2 * k + d) : J(c.control.rest(i, d));
+  }
+  auto e = green_strain(xs, u);
+  J A = rest_area(u);
+  return {0.5 * A * e[0] * e[0], 0.5 * A * e[1] * e[1], 0.5 * A * e[2] * e[2]};
+}
+
+// Hinge: θ as a jet over x (12); w as a dual over ū (8).
+struct HingeTerms {
+  Jet<12> theta;
+  Dual<8> w;
+  bool ok;
+};
+HingeTerms hinge_terms(const EnergyContext& c, const RowMatX3d& x, int h) {
+  HingeTerms r;
+  V3<Jet<12>> xs[4];
+  Dual<8> u[4][2];
+  for (int k = 0; k < 4; ++k) {
+    int i = c.model.hinges(h, k);
+    xs[k] = var3<Jet<12>>(x, i, 3 * k);
+    for (int d = 0; d < 2; ++d) u[k][d] = Dual<8>::var(c.control.rest(i, d), 2 * k + d);
+  }
+  Vec3 a = x.row(c.model.hinges(h, 0)), b = x.row(c.model.hinges(h, 1));
+  Vec3 cc = x.row(c.model.hinges(h, 2)), d = x.row(c.model.hinges(h, 3));
+  Vec3 e = b - a;
+  r.ok = e.norm() > 1e-12 && e.cross(cc - a).squaredNorm() > 1e-30 && (d - a).cross(e).squaredNorm() > 1e-30;
+  if (!r.ok) return r;
+  r.theta = dihedral_angle(xs[0], xs[1], xs[2], xs[3]) - c.model.hinge_rest_angle[h];
+  r.w = hinge_weight(u[0], u[1], u[2], u[3]);
+  return r;
+}
+
+// Contact: C as a jet over [p (3) | b0 b1 b2 (9)].
+Jet<12> contact_C(const EnergyContext& c, const RowMatX3d& x, const Contact& ct) {
+  using J = Jet<12>;
+  V3<J> p = var3<J>(x, ct.vertex, 0);
+  V3<J> b[3];
+  for (int k = 0; k < 3; ++k) b[k] = var3<J>(c.control.body_vertices, c.model.body_faces(ct.tri, k), 3 + 3 * k);
+  return contact_gap(p, b[0], b[1], b[2], c.model.thickness);
+}
+
+template <int N>
+Eigen::Matrix<double, N, N> project_psd(const Eigen::Matrix<double, N, N>& H) {
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, N, N>> es(H);
+  Eigen::Matrix<double, N, 1> ev = es.eigenvalues().cwiseMax(0.0);
+  return es.eigenvectors() * ev.asDiagonal() * es.eigenvectors().transpose();
+}
+
+}  // namespace
+
+double total_energy(const EnergyContext& c, const RowMatX3d& x) {
+  const ClothModel& m = c.model;
+  double E = 0.0;
+#pragma omp parallel for reduction(+ : E) schedule(static) if (m.faces.rows() >= 512)
+  for (int t = 0; t < m.faces.rows(); ++t) {
+    V3<double> xs[3];
+    double u[3][2], al[3];
+    for (int k = 0; k < 3; ++k) {
+      int i = m.faces(t, k);
+      xs[k] = {x(i, 0), x(i, 1), x(i, 2)};
+      u[k][0] = c.control.rest(i, 0);
+      u[k][1] = c.control.rest(i, 1);
+      al[k] = c.control.stretch_compliance(m.tri_group[t], k);
+    }
+    E += stretch_energy(xs, u, al);
+  }
+#pragma omp parallel for reduction(+ : E) schedule(static) if (m.hinges.rows() >= 512)
+  for (int h = 0; h < m.hinges.rows(); ++h) {
+    double k = c.control.bend_stiffness[m.hinge_group[h]];
+    if (k == 0.0) continue;
+    V3<double> xs[4];
+    for (int j = 0; j < 4; ++j) {
+      int i = m.hinges(h, j);
+      xs[j] = {x(i, 0), x(i, 1), x(i, 2)};
+    }
+    double th = dihedral_angle(xs[0], xs[1], xs[2], xs[3]) - m.hinge_rest_angle[h];
+    if (std::isfinite(th)) E += 0.5 * k * c.cache.hinge_weight[h] * th * th;
+  }
+  for (int s = 0; s < m.seams.rows(); ++s)
+    E += (x.row(m.seams(s, 0)) - x.row(m.seams(s, 1))).squaredNorm() * 0.5 / m.seam_compliance;
+  for (const Contact& ct : c.contacts) {
+    Vec3 b0 = c.control.body_vertices.row(m.body_faces(ct.tri, 0));
+    Vec3 b1 = c.control.body_vertices.row(m.body_faces(ct.tri, 1));
+    Vec3 b2 = c.control.body_vertices.row(m.body_faces(ct.tri, 2));
+    V3<double> p{x(ct.vertex, 0), x(ct.vertex, 1), x(ct.vertex, 2)};
+    E += contact_energy(p, {b0.x(), b0.y(), b0.z()}, {b1.x(), b1.y(), b1.z()}, {b2.x(), b2.y(), b2.z()},
+                        m.thickness, m.contact_stiffness);
+  }
+  for (int i = 0; i < x.rows(); ++i) E -= m.mass[i] * c.gravity.dot(x.row(i).transpose());
+  if (c.anchor && c.anchor_stiffness > 0)
+    for (int i = 0; i < x.rows(); ++i)
+      E += 0.5 * c.anchor_stiffness * m.mass[i] * (x.row(i) - c.anchor->row(i)).squaredNorm();
+  return E;
+}
+
+RowMatX3d energy_gradient(const EnergyContext& c, const RowMatX3d& x) {
+  const ClothModel& m = c.model;
+  const int nv = static_cast<int>(x.rows());
+  RowMatX3d G(nv, 3);
+  for (int i = 0; i < nv; ++i) G.row(i) = -m.mass[i] * c.gravity.transpose();
+  if (c.anchor && c.anchor_stiffness > 0)
+    for (int i = 0; i < nv; ++i) G.row(i) += c.anchor_stiffness * m.mass[i] * (x.row(i) - c.anchor->row(i));
+  // Element gradients in parallel, scattered serially (deterministic).
+  std::vector<Eigen::Matrix<double, 9, 1>> gt(m.faces.rows());
+#pragma omp parallel for schedule(static) if (m.faces.rows() >= 256)
+  for (int t = 0; t < m.faces.rows(); ++t) {
+    auto q = tri_terms<9>(c, x, t);
+    gt[t].setZero();
+    for (int a = 0; a < 3; ++a) gt[t] += q[a].g / c.control.stretch_compliance(m.tri_group[t], a);
+  }
+  std::vector<Eigen::Matrix<double, 12, 1>> gh(m.hinges.rows());
+#pragma omp parallel for schedule(static) if (m.hinges.rows() >= 256)
+  for (int h = 0; h < m.hinges.rows(); ++h) {
+    gh[h].setZero();
+    double k = c.control.bend_stiffness[m.hinge_group[h]];
+    if (k == 0.0) continue;
+    double th;
+    Vec3 g4[4];
+    const auto& H4 = m.hinges.row(h);
+    if (!dihedral_gradient(x.row(H4[0]).transpose(), x.row(H4[1]).transpose(), x.row(H4[2]).transpose(),
+                           x.row(H4[3]).transpose(), &th, g4))
+      continue;
+    double s = k * c.cache.hinge_weight[h] * (th - m.hinge_rest_angle[h]);
+    for (int j = 0; j < 4; ++j) gh[h].segment<3>(3 * j) = s * g4[j];
+  }
+  for (int t = 0; t < m.faces.rows(); ++t)
+    for (int k = 0; k < 3; ++k) G.row(m.faces(t, k)) += gt[t].segment<3>(3 * k).transpose();
+  for (int h = 0; h < m.hinges.rows(); ++h)
+    for (int k = 0; k < 4; ++k) G.row(m.hinges(h, k)) += gh[h].segment<3>(3 * k).transpose();
+  for (int s = 0; s < m.seams.rows(); ++s) {
+    Eigen::RowVector3d d = (x.row(m.seams(s, 0)) - x.row(m.seams(s, 1))) / m.seam_compliance;
+    G.row(m.seams(s, 0)) += d;
+    G.row(m.seams(s, 1)) -= d;
+  }
+  for (const Contact& ct : c.contacts) {
+    Jet<12> C = contact_C(c, x, ct);
+    if (C.v < 0.0) G.row(ct.vertex) += m.contact_stiffness * C.v * C.g.segment<3>(0).transpose();
+  }
+  return G;
+}
+
+Eigen::SparseMatrix<double> energy_hessian(const EnergyContext& c, const RowMatX3d& x, const std::vector<int>& dof,
+                                           bool psd) {
+  const ClothModel& m = c.model;
+  int n = 0;
+  for (int d : dof) n = std::max(n, d + 3);
+  std::vector<Eigen::Matrix<double, 9, 9>> Ht(m.faces.rows());
+  std::vector<Eigen::Matrix<double, 12, 12>> Hh(m.hinges.rows());
+#pragma omp parallel for schedule(static) if (m.faces.rows() >= 256)
+  for (int t = 0; t < m.faces.rows(); ++t) {
+    auto q = tri_terms<9>(c, x, t);
+    Ht[t].setZero();
+    for (int a = 0; a < 3; ++a) Ht[t] += q[a].H / c.control.stretch_compliance(m.tri_group[t], a);
+    if (psd) Ht[t] = project_psd<9>(Ht[t]);
+  }
+#pragma omp parallel for schedule(static) if (m.hinges.rows() >= 256)
+  for (int h = 0; h < m.hinges.rows(); ++h) {
+    Hh[h].setZero();
+    double k = c.control.bend_stiffness[m.hinge_group[h]];
+    if (k == 0.0) continue;
+    HingeTerms r = hinge_terms(c, x, h);
+    if (!r.ok) continue;
+    Hh[h] = k * r.w.v * (r.theta.g * r.theta.g.transpose() + r.theta.v * r.theta.H);
+    if (psd) Hh[h] = project_psd<12>(Hh[h]);
+  }
+  std::vector<Eigen::Triplet<double>> trip;
+  trip.reserve(m.faces.rows() * 81 + m.hinges.rows() * 144 + m.seams.rows() * 12 + c.contacts.size() * 9);
+  auto scatter = [&](const auto& H, const int* vs, int nvs) {
+    for (int a = 0; a < nvs; ++a) {
+      int ra = dof[vs[a]];
+      if (ra < 0) continue;
+      for (int b = 0; b < nvs; ++b) {
+        int rb = dof[vs[b]];
+        if (rb < 0) continue;
+        for (int i = 0; i < 3; ++i)
+          for (int j = 0; j < 3; ++j) trip.emplace_back(ra + i, rb + j, H(3 * a + i, 3 * b + j));
+      }
+    }
+  };
+  for (int t = 0; t < m.faces.rows(); ++t) scatter(Ht[t], &m.faces(t, 0), 3);
+  for (int h = 0; h < m.hinges.rows(); ++h) scatter(Hh[h], &m.hinges(h, 0), 4);
+  Eigen::Matrix<double, 6, 6> Hs;
+  Hs << Eigen::Matrix3d::Identity(), -Eigen::Matrix3d::Identity(), -Eigen::Matrix3d::Identity(),
+      Eigen::Matrix3d::Identity();
+  Hs /= m.seam_compliance;
+  for (int s = 0; s < m.seams.rows(); ++s) scatter(Hs, &m.seams(s, 0), 2);
+  for (const Contact& ct : c.contacts) {
+    Jet<12> C = contact_C(c, x, ct);
+    if (C.v >= 0.0) continue;  // C is linear in p: ∇ₚ²U = k_c ∇ₚC ∇ₚCᵀ
+    Eigen::Matrix3d H = m.contact_stiffness * C.g.segment<3>(0) * C.g.segment<3>(0).transpose();
+    scatter(H, &ct.vertex, 1);
+  }
+  if (c.anchor && c.anchor_stiffness > 0)
+    for (int i = 0; i < m.num_vertices; ++i)
+      if (dof[i] >= 0)
+        for (int k = 0; k < 3; ++k) trip.emplace_back(dof[i] + k, dof[i] + k, c.anchor_stiffness * m.mass[i]);
+  Eigen::SparseMatrix<double> S(n, n);
+  S.setFromTriplets(trip.begin(), trip.end());
+  return S;
+}
+
+ControlGradient mixed_product(const EnergyContext& c, const RowMatX3d& x, const RowMatX3d& mu) {
+  const ClothModel& m = c.model;
+  ControlGradient g;
+  g.rest = RowMatX2d::Zero(c.control.rest.rows(), 2);
+  g.stretch_compliance = RowMatX3d::Zero(m.num_groups, 3);
+  g.bend_stiffness = VecXd::Zero(m.num_groups);
+  g.body_vertices = RowMatX3d::Zero(c.control.body_vertices.rows(), 3);
+  // Triangles: μ_localᵀ ∂²E/∂x∂ū and ∂/∂α_a (∇ₓE) = −∇ₓQ_a/α_a².
+  std::vector<Eigen::Matrix<double, 6, 1>> gu(m.faces.rows());
+  std::vector<Eigen::Vector3d> ga(m.faces.rows());
+#pragma omp parallel for schedule(static) if (m.faces.rows() >= 256)
+  for (int t = 0; t < m.faces.rows(); ++t) {
+    auto q = tri_terms<15>(c, x, t);
+    Eigen::Matrix<double, 9, 1> ml;
+    for (int k = 0; k < 3; ++k) ml.segment<3>(3 * k) = mu.row(m.faces(t, k)).transpose();
+    gu[t].setZero();
+    for (int a = 0; a < 3; ++a) {
+      double al = c.control.stretch_compliance(m.tri_group[t], a);
+      gu[t] += q[a].H.template block<6, 9>(9, 0) * ml / al;
+      ga[t][a] = -ml.dot(q[a].g.template head<9>()) / (al * al);
+    }
+  }
+  std::vector<Eigen::Matrix<double, 8, 1>> hu(m.hinges.rows());
+  std::vector<double> hk(m.hinges.rows(), 0.0);
+#pragma omp parallel for schedule(static) if (m.hinges.rows() >= 256)
+  for (int h = 0; h < m.hinges.rows(); ++h) {
+    hu[h].setZero();
+    HingeTerms r = hinge_terms(c, x, h);
+    if (!r.ok) continue;
+    double k = c.control.bend_stiffness[m.hinge_group[h]];
+    Eigen::Matrix<double, 12, 1> ml;
+    for (int j = 0; j < 4; ++j) ml.segment<3>(3 * j) = mu.row(m.hinges(h, j)).transpose();
+    double s = ml.dot(r.theta.g) * r.theta.v;  // μᵀ θ ∇θ
+    hu[h] = k * s * r.w.g;                      // ∂/∂ū of k w θ ∇θ
+    hk[h] = r.w.v * s;                          // ∂/∂k
+  }
+  for (int t = 0; t < m.faces.rows(); ++t) {
+    for (int k = 0; k < 3; ++k) g.rest.row(m.faces(t, k)) += gu[t].segment<2>(2 * k).transpose();
+    g.stretch_compliance.row(m.tri_group[t]) += ga[t].transpose();
+  }
+  for (int h = 0; h < m.hinges.rows(); ++h) {
+    for (int k = 0; k < 4; ++k) g.rest.row(m.hinges(h, k)) += hu[h].segment<2>(2 * k).transpose();
+    g.bend_stiffness[m.hinge_group[h]] += hk[h];
+  }
+  for (const Contact& ct : c.contacts) {
+    Jet<12> C = contact_C(c, x, ct);
+    if (C.v >= 0.0) continue;
+    // ∇ₚU = k C ∇ₚC → ∂/∂b = k (∇_b C ∇ₚCᵀ + C ∇²_{b,p} C) applied to μ_p.
+    Eigen::Vector3d mp = mu.row(ct.vertex).transpose();
+    Eigen::Matrix<double, 9, 1> gb =
+        m.contact_stiffness * (C.g.segment<9>(3) * C.g.segment<3>(0).dot(mp) + C.v * C.H.block<9, 3>(3, 0) * mp);
+    for (int k = 0; k < 3; ++k) g.body_vertices.row(m.body_faces(ct.tri, k)) += gb.segment<3>(3 * k).transpose();
+  }
+  return g;
+}
+
+}  // namespace diffavatar

@@ -1,0 +1,105 @@
+#include "sim/cloth_model.hpp"
+
+#include <algorithm>
+#include <array>
+#include <map>
+#include <stdexcept>
+#include <string>
+
+namespace diffavatar {
+
+std::vector<std::vector<int>> color_constraints(const std::vector<std::vector<int>>& verts, int num_vertices) {
+  std::vector<std::vector<int>> used(num_vertices);  // colours used at each vertex
+  std::vector<std::vector<int>> colors;
+  std::vector<char> taken;
+  for (int c = 0; c < static_cast<int>(verts.size()); ++c) {
+    taken.assign(colors.size() + 1, 0);
+    for (int v : verts[c])
+      for (int k : used[v]) taken[k] = 1;
+    int k = 0;
+    while (taken[k]) ++k;
+    if (k == static_cast<int>(colors.size())) colors.emplace_back();
+    colors[k].push_back(c);
+    for (int v : verts[c]) used[v].push_back(k);
+  }
+  return colors;
+}
+
+ClothModel build_cloth_model(int nv, const RefX3i& F, const RefX2d& rest, const VecXi& tri_group,
+                             const RefX2i& seams, const std::vector<int>& pinned, const RefX3i& body_faces,
+                             double density, double thickness, double contact_stiffness, double seam_compliance) {
+  if (nv <= 0) throw std::invalid_argument("cloth model: no vertices");
+  if (rest.rows() != nv) throw std::invalid_argument("cloth model: rest must have one row per vertex");
+  if (tri_group.size() != F.rows()) throw std::invalid_argument("cloth model: tri_group must have one entry per face");
+  if (!(density > 0) || !(thickness >= 0) || !(contact_stiffness > 0) || !(seam_compliance > 0))
+    throw std::invalid_argument("cloth model: density, contact stiffness, seam compliance must be > 0, thickness >= 0");
+  ClothModel m;
+  m.num_vertices = nv;
+  m.faces = F;
+  m.tri_group = tri_group;
+  m.num_groups = F.rows() ? tri_group.maxCoeff() + 1 : 1;
+  m.seams = seams;
+  m.body_faces = body_faces;
+  m.thickness = thickness;
+  m.contact_stiffness = contact_stiffness;
+  m.seam_compliance = seam_compliance;
+  // Masses from rest areas.
+  m.mass = VecXd::Zero(nv);
+  for (int t = 0; t < F.rows(); ++t) {
+    Vec2 a = rest.row(F(t, 0)), b = rest.row(F(t, 1)), c = rest.row(F(t, 2));
+    double A = 0.5 * ((b - a).x() * (c - a).y() - (c - a).x() * (b - a).y());
+    if (!(A > 0)) throw std::invalid_argument("cloth model: rest triangle " + std::to_string(t) +
+                                              " is degenerate or clockwise in the pattern plane");
+    for (int k = 0; k < 3; ++k) m.mass[F(t, k)] += density * A / 3.0;
+  }
+  m.inv_mass = VecXd::Zero(nv);
+  for (int i = 0; i < nv; ++i) {
+    if (!(m.mass[i] > 0)) throw std::invalid_argument("cloth model: vertex " + std::to_string(i) + " is in no triangle");
+    m.inv_mass[i] = 1.0 / m.mass[i];
+  }
+  for (int p : pinned) {
+    if (p < 0 || p >= nv) throw std::invalid_argument("cloth model: pinned index out of range");
+    m.inv_mass[p] = 0.0;
+  }
+  // Hinges: interior edges shared by exactly two consistently oriented triangles.
+  std::map<std::pair<int, int>, std::vector<std::pair<int, int>>> edges;  // (min,max) -> (tri, local k)
+  for (int t = 0; t < F.rows(); ++t)
+    for (int k = 0; k < 3; ++k) {
+      int a = F(t, k), b = F(t, (k + 1) % 3);
+      edges[{std::min(a, b), std::max(a, b)}].push_back({t, k});
+    }
+  std::vector<std::array<int, 4>> hs;
+  std::vector<int> hg;
+  for (auto& [key, lst] : edges) {
+    if (lst.size() != 2) continue;
+    auto [t1, k1] = lst[0];
+    auto [t2, k2] = lst[1];
+    int a = F(t1, k1), b = F(t1, (k1 + 1) % 3), c = F(t1, (k1 + 2) % 3);
+    int d = F(t2, (k2 + 2) % 3);
+    if (F(t2, k2) != b) continue;  // inconsistent orientation: no hinge
+    hs.push_back({a, b, c, d});
+    hg.push_back(tri_group[t1]);
+  }
+  m.hinges.resize(hs.size(), 4);
+  m.hinge_group.resize(hs.size());
+  for (size_t h = 0; h < hs.size(); ++h) {
+    for (int k = 0; k < 4; ++k) m.hinges(h, k) = hs[h][k];
+    m.hinge_group[h] = hg[h];
+  }
+  m.hinge_rest_angle = VecXd::Zero(hs.size());
+  // Colouring.
+  std::vector<std::vector<int>> vt(F.rows()), vh(hs.size()), vs(seams.rows());
+  for (int t = 0; t < F.rows(); ++t) vt[t] = {F(t, 0), F(t, 1), F(t, 2)};
+  for (size_t h = 0; h < hs.size(); ++h) vh[h] = {hs[h][0], hs[h][1], hs[h][2], hs[h][3]};
+  for (int s = 0; s < seams.rows(); ++s) {
+    if (seams(s, 0) < 0 || seams(s, 0) >= nv || seams(s, 1) < 0 || seams(s, 1) >= nv || seams(s, 0) == seams(s, 1))
+      throw std::invalid_argument("cloth model: seam " + std::to_string(s) + " has a bad vertex pair");
+    vs[s] = {seams(s, 0), seams(s, 1)};
+  }
+  m.tri_colors = color_constraints(vt, nv);
+  m.hinge_colors = color_constraints(vh, nv);
+  m.seam_colors = color_constraints(vs, nv);
+  return m;
+}
+
+}  // namespace diffavatar

@@ -1,0 +1,303 @@
+#include "sim/xpbd_solver.hpp"
+
+#include <Eigen/SparseCholesky>
+#include <chrono>
+#include <cmath>
+
+#include "sim/bending_kernel.hpp"
+#include "sim/cloth_energy.hpp"
+#include "sim/contact_kernel.hpp"
+#include "sim/seam_kernel.hpp"
+#include "sim/stretch_kernel.hpp"
+
+namespace diffavatar {
+
+// Below this many constraints in a colour the sweep runs serially: an OpenMP fork/join costs
+// more than the work, and far more on an oversubscribed machine.
+constexpr int kParallelMin = 1024;
+
+XpbdSolver::XpbdSolver(ClothModel model, ClothControl control) : model_(std::move(model)) {
+  collider_ = BodyCollider(control.body_vertices, model_.body_faces);
+  set_control(std::move(control));
+}
+
+void XpbdSolver::set_control(ClothControl control) {
+  cache_ = prepare_control(model_, control);
+  control_ = std::move(control);
+  collider_.set_vertices(control_.body_vertices);
+}
+
+ClothState XpbdSolver::make_state(const RowMatX3d& x) const {
+  if (x.rows() != model_.num_vertices) throw std::invalid_argument("state: x must be #V×3");
+  ClothState s;
+  s.x = x;
+  s.v = RowMatX3d::Zero(x.rows(), 3);
+  s.lambda_tri = RowMatX3d::Zero(model_.faces.rows(), 3);
+  s.lambda_hinge = VecXd::Zero(model_.hinges.rows());
+  s.lambda_seam = RowMatX3d::Zero(model_.seams.rows(), 3);
+  s.lambda_contact = VecXd::Zero(0);
+  return s;
+}
+
+void XpbdSolver::detect_contacts(const RowMatX3d& x, const SimParams& p) {
+  contacts_ = collider_.detect(x, model_.inv_mass, model_.thickness + p.contact_radius);
+}
+
+void XpbdSolver::sweep(ClothState& s, double dt) {
+  const ClothModel& m = model_;
+  const double dt2 = dt * dt;
+  RowMatX3d& x = s.x;
+  for (const auto& color : m.tri_colors) {
+    const int n = static_cast<int>(color.size());
+#pragma omp parallel for schedule(static) if (n >= kParallelMin)
+    for (int j = 0; j < n; ++j) {
+      int t = color[j];
+      Vec3 p[3];
+      Vec3* pp[3];
+      double w[3];
+      for (int k = 0; k < 3; ++k) {
+        int i = m.faces(t, k);
+        p[k] = x.row(i).transpose();
+        pp[k] = &p[k];
+        w[k] = m.inv_mass[i];
+      }
+      Vec3 at = control_.stretch_compliance.row(m.tri_group[t]).transpose() / (cache_.tri[t].area * dt2);
+      project_stretch(pp, w, cache_.tri[t], at, &s.lambda_tri(t, 0));
+      for (int k = 0; k < 3; ++k) x.row(m.faces(t, k)) = p[k].transpose();
+    }
+  }
+  for (const auto& color : m.hinge_colors) {
+    const int n = static_cast<int>(color.size());
+#pragma omp parallel for schedule(static) if (n >= kParallelMin)
+    for (int j = 0; j < n; ++j) {
+      int h = color[j];
+      double k = control_.bend_stiffness[m.hinge_group[h]];
+      double kw = k * cache_.hinge_weight[h];
+      if (!(kw > 0.0)) continue;
+      Vec3 p[4];
+      Vec3* pp[4];
+      double w[4];
+      for (int q = 0; q < 4; ++q) {
+        int i = m.hinges(h, q);
+        p[q] = x.row(i).transpose();
+        pp[q] = &p[q];
+        w[q] = m.inv_mass[i];
+      }
+      project_bending(pp, w, m.hinge_rest_angle[h], 1.0 / (kw * dt2), &s.lambda_hinge[h]);
+      for (int q = 0; q < 4; ++q) x.row(m.hinges(h, q)) = p[q].transpose();
+    }
+  }
+  for (const auto& color : m.seam_colors) {
+    const int n = static_cast<int>(color.size());
+#pragma omp parallel for schedule(static) if (n >= kParallelMin)
+    for (int j = 0; j < n; ++j) {
+      int sidx = color[j];
+      int a = m.seams(sidx, 0), b = m.seams(sidx, 1);
+      Vec3 xa = x.row(a).transpose(), xb = x.row(b).transpose();
+      project_seam(xa, xb, m.inv_mass[a], m.inv_mass[b], m.seam_compliance / dt2, &s.lambda_seam(sidx, 0));
+      x.row(a) = xa.transpose();
+      x.row(b) = xb.transpose();
+    }
+  }
+  const int nc = static_cast<int>(contacts_.size());
+  if (s.lambda_contact.size() != nc) s.lambda_contact = VecXd::Zero(nc);
+  const double ac = 1.0 / (m.contact_stiffness * dt2);
+#pragma omp parallel for schedule(static) if (nc >= kParallelMin)
+  for (int j = 0; j < nc; ++j) {
+    const Contact& ct = contacts_[j];
+    Vec3 pi = x.row(ct.vertex).transpose();
+    project_contact(pi, m.inv_mass[ct.vertex], collider_.normal(ct.tri), collider_.vertex(ct.tri, 0), m.thickness, ac,
+                    &s.lambda_contact[j]);
+    x.row(ct.vertex) = pi.transpose();
+  }
+}
+
+double XpbdSolver::step(ClothState& s, const SimParams& p) {
+  const ClothModel& m = model_;
+  const int nv = m.num_vertices;
+  RowMatX3d x_prev = s.x;
+  const double decay = std::exp(-p.damping * p.dt);
+  double vpred = 0.0;
+  for (int i = 0; i < nv; ++i) {
+    if (m.inv_mass[i] == 0.0) continue;
+    s.v.row(i) = s.v.row(i) * decay + p.dt * p.gravity.transpose();
+    s.x.row(i) += p.dt * s.v.row(i);
+    vpred = std::max(vpred, s.v.row(i).norm());
+  }
+  // Contacts of the predicted positions; the search radius grows with the step's travel so a
+  // fast vertex cannot tunnel through the collision layer between detections.
+  contacts_ = collider_.detect(s.x, m.inv_mass, m.thickness + p.contact_radius + std::min(vpred * p.dt, 0.1));
+  s.lambda_tri.setZero();
+  s.lambda_hinge.setZero();
+  s.lambda_seam.setZero();
+  s.lambda_contact = VecXd::Zero(contacts_.size());
+  for (int it = 0; it < p.iterations; ++it) sweep(s, p.dt);
+  double vmax = 0.0;
+  for (int i = 0; i < nv; ++i) {
+    if (m.inv_mass[i] == 0.0) {
+      s.v.row(i).setZero();
+      continue;
+    }
+    s.v.row(i) = (s.x.row(i) - x_prev.row(i)) / p.dt;
+    double sp = s.v.row(i).norm();
+    if (!(sp <= vmax)) vmax = std::isfinite(sp) ? std::max(vmax, sp) : INFINITY;
+  }
+  return vmax;
+}
+
+std::vector<int> XpbdSolver::free_dofs() const {
+  std::vector<int> dof(model_.num_vertices, -1);
+  int n = 0;
+  for (int i = 0; i < model_.num_vertices; ++i)
+    if (model_.inv_mass[i] > 0.0) {
+      dof[i] = n;
+      n += 3;
+    }
+  return dof;
+}
+
+EnergyContext XpbdSolver::energy_context(const Vec3& gravity) const {
+  EnergyContext ctx{model_, control_, cache_, contacts_, gravity};
+  if (anchor_.rows() == model_.num_vertices && anchor_k_ > 0) {
+    ctx.anchor = &anchor_;
+    ctx.anchor_stiffness = anchor_k_;
+  }
+  return ctx;
+}
+
+double XpbdSolver::residual(const RowMatX3d& x, const Vec3& gravity) const {
+  EnergyContext ctx = energy_context(gravity);
+  RowMatX3d G = energy_gradient(ctx, x);
+  double worst = 0.0, wsum = 0.0;
+  int nfree = 0;
+  for (int i = 0; i < model_.num_vertices; ++i) {
+    if (model_.inv_mass[i] == 0.0) continue;
+    worst = std::max(worst, G.row(i).norm());
+    wsum += model_.mass[i];
+    ++nfree;
+  }
+  double ref = nfree ? wsum / nfree * std::max(gravity.norm(), 1e-12) : 1.0;
+  return worst / ref;
+}
+
+int XpbdSolver::refine(ClothState& s, const SimParams& p, const DrapeParams& d, RunControl& rc, double* res_out,
+                       bool keep_anchor, bool keep_contacts) {
+  if (!keep_anchor || anchor_.rows() != model_.num_vertices) anchor_ = s.x;
+  anchor_k_ = d.anchor_stiffness;
+  const std::vector<int> dof = free_dofs();
+  int n = 0;
+  for (int v : dof) n = std::max(n, v + 3);
+  int it = 0;
+  double res = INFINITY;
+  double reg = 1e-9;
+  for (; it < d.refine_iterations; ++it) {
+    rc.check("equilibrium refinement");
+    // The contact set is detected once and then held fixed, so every line search minimises
+    // one energy (re-detection between Newton steps makes the iteration cycle).
+    if (it == 0 && !keep_contacts) detect_contacts(s.x, p);
+    EnergyContext ctx = energy_context(p.gravity);
+    res = residual(s.x, p.gravity);
+    rc.report({"refine", it, d.refine_iterations, res});
+    if (res <= d.residual_tol || n == 0) break;
+    RowMatX3d G = energy_gradient(ctx, s.x);
+    VecXd g(n);
+    for (int i = 0; i < model_.num_vertices; ++i)
+      if (dof[i] >= 0) g.segment<3>(dof[i]) = G.row(i).transpose();
+    Eigen::SparseMatrix<double> H = energy_hessian(ctx, s.x, dof, true);
+    double diag_mean = H.diagonal().cwiseAbs().mean();
+    VecXd step;
+    for (int attempt = 0; attempt < 8; ++attempt) {
+      Eigen::SparseMatrix<double> Hr = H;
+      for (int k = 0; k < n; ++k) Hr.coeffRef(k, k) += reg * diag_mean;
+      Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt(Hr);
+      if (ldlt.info() == Eigen::Success) {
+        step = ldlt.solve(-g);
+        if (step.allFinite()) break;
+      }
+      reg *= 100.0;
+    }
+    if (step.size() != n) break;
+    // Backtracking line search on E (Armijo) with the contact set held fixed.
+    double E0 = total_energy(ctx, s.x), slope = g.dot(step), a = 1.0;
+    RowMatX3d xt = s.x;
+    bool ok = false;
+    for (int ls = 0; ls < 30; ++ls) {
+      for (int i = 0; i < model_.num_vertices; ++i)
+        if (dof[i] >= 0) xt.row(i) = s.x.row(i) + a * step.segment<3>(dof[i]).transpose();
+      double E1 = total_energy(ctx, xt);
+      if (std::isfinite(E1) && E1 <= E0 + 1e-4 * a * slope) {
+        ok = true;
+        break;
+      }
+      // Near the solution the energy decrease falls below its round-off; then accept the full
+      // Newton step when it halves the force residual instead.
+      if (ls == 0 && std::isfinite(E1) && std::abs(E1 - E0) <= 1e-12 * (std::abs(E0) + 1e-12) &&
+          residual(xt, p.gravity) < 0.5 * res) {
+        ok = true;
+        break;
+      }
+      a *= 0.5;
+    }
+    if (!ok) {
+      reg = std::max(reg * 100.0, 1e-6);
+      if (reg > 1e3) break;
+      continue;
+    }
+    s.x = xt;
+    reg = std::max(reg * 0.1, 1e-12);
+  }
+  res = residual(s.x, p.gravity);
+  if (res_out) *res_out = res;
+  s.v.setZero();
+  return it;
+}
+
+DrapeReport XpbdSolver::drape(ClothState& s, const SimParams& p, const DrapeParams& d, RunControl& rc) {
+  auto t0 = std::chrono::steady_clock::now();
+  DrapeReport r;
+  RowMatX3d x_good = s.x, v_good = s.v;
+  for (r.steps = 0; r.steps < d.max_steps; ++r.steps) {
+    rc.check("drape");
+    double vmax = step(s, p);
+    if (!std::isfinite(vmax) || vmax > p.max_speed || !s.x.allFinite()) {
+      s.x = x_good;
+      s.v = v_good;
+      r.diverged = true;
+      r.message = "diverged at step " + std::to_string(r.steps) + " (max speed " + std::to_string(vmax) +
+                  " m/s > " + std::to_string(p.max_speed) + "): time step too large or material too stiff; "
+                  "state restored to the last finite step";
+      break;
+    }
+    x_good = s.x;
+    v_good = s.v;
+    r.max_speed = vmax;
+    rc.report({"drape", r.steps, d.max_steps, vmax});
+    if (r.steps + 1 >= d.min_steps && vmax < d.speed_tol) {
+      r.settled = true;
+      ++r.steps;
+      break;
+    }
+  }
+  if (!r.diverged && d.refine) {
+    RowMatX3d x_before = s.x;
+    r.refine_iterations = refine(s, p, d, rc, &r.residual);
+    if (!s.x.allFinite()) {
+      s.x = x_before;
+      detect_contacts(s.x, p);
+      r.residual = residual(s.x, p.gravity);
+      r.message = "equilibrium refinement produced non-finite positions; XPBD state kept";
+    }
+  } else {
+    detect_contacts(s.x, p);
+    r.residual = residual(s.x, p.gravity);
+  }
+  r.converged = !r.diverged && r.residual <= d.residual_tol;
+  if (r.message.empty())
+    r.message = r.converged ? "converged" : (r.settled ? "settled but residual above tolerance" : "step budget exhausted");
+  r.max_penetration = max_penetration(s.x);
+  r.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  rc.report({"drape", r.steps, d.max_steps, r.residual}, true);
+  return r;
+}
+
+}  // namespace diffavatar

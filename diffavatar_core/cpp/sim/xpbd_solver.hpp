@@ -1,0 +1,93 @@
+// XPBD cloth solver (paper §3.2, Eq. 1–2; Macklin et al. 2016) over a Model, a Control and a
+// State kept apart (cloth_model.hpp, cloth_control.hpp, cloth_state.hpp), plus the
+// quasi-static drape of the paper: XPBD dynamics until the garment settles, then Newton
+// refinement of the same energy (cloth_energy.hpp) to the exact equilibrium that the
+// equilibrium adjoint differentiates. Constraints run colour by colour; inside a colour they
+// share no vertex and run in parallel with OpenMP, so results are deterministic for any thread
+// count. Units: m, kg, s.
+#pragma once
+#include <string>
+#include <vector>
+
+#include "common/run_control.hpp"
+#include "sim/body_collider.hpp"
+#include "sim/cloth_energy.hpp"
+#include "sim/cloth_control.hpp"
+#include "sim/cloth_model.hpp"
+#include "sim/cloth_state.hpp"
+
+namespace diffavatar {
+
+struct SimParams {
+  double dt = 1.0 / 120.0;             // s
+  int iterations = 100;                // constraint sweeps per step (Gauss–Seidel is soft below ~50)
+  Vec3 gravity = Vec3(0.0, -9.81, 0.0);  // m/s²
+  double damping = 4.0;                // 1/s, v ← v·exp(−damping·dt)
+  double contact_radius = 0.01;        // m beyond the thickness within which contacts are detected
+  double max_speed = 50.0;             // m/s; above (or non-finite) the step is declared diverged
+};
+
+struct DrapeParams {
+  int max_steps = 2000;
+  int min_steps = 20;
+  double speed_tol = 2e-3;     // m/s: XPBD phase has settled when every vertex is slower
+  bool refine = true;          // Newton refinement to the exact equilibrium afterwards
+  double residual_tol = 1e-5;  // max |net force| / mean vertex weight (dimensionless)
+  double anchor_stiffness = 1.0;  // κ (1/s²) of the static-friction proxy (cloth_energy.hpp)
+  int refine_iterations = 60;
+};
+
+struct DrapeReport {
+  bool converged = false;   // residual ≤ residual_tol at the end (and not diverged)
+  bool settled = false;     // XPBD phase reached speed_tol within the step budget
+  bool diverged = false;    // a step produced non-finite or absurd velocities (state restored)
+  int steps = 0;
+  int refine_iterations = 0;
+  double max_speed = 0.0;        // m/s at the end of the XPBD phase
+  double residual = 0.0;         // dimensionless force residual at the end
+  double max_penetration = 0.0;  // m below the body surface
+  double wall_s = 0.0;
+  std::string message;
+};
+
+class XpbdSolver {
+ public:
+  XpbdSolver(ClothModel model, ClothControl control);
+  const ClothModel& model() const { return model_; }
+  const ClothControl& control() const { return control_; }
+  const RestCache& cache() const { return cache_; }
+  /// Replaces the control (validated); refits the body collider to the new body vertices.
+  void set_control(ClothControl control);
+  /// A state at rest at positions x (m): v = 0, λ = 0.
+  ClothState make_state(const RowMatX3d& x) const;
+  /// One XPBD step of length p.dt. Returns the max vertex speed (m/s) after the step.
+  double step(ClothState& s, const SimParams& p);
+  /// One projection sweep over all constraints (the benchmark's unit of work).
+  void sweep(ClothState& s, double dt);
+  DrapeReport drape(ClothState& s, const SimParams& p, const DrapeParams& d, RunControl& rc);
+  /// Newton refinement of s.x to ∇ₓE = 0; returns iterations used; sets residual. The anchors
+  /// of the friction proxy are set to s.x unless keep_anchor (then the stored ones are reused).
+  /// keep_contacts skips the contact detection (the last contact set is used).
+  int refine(ClothState& s, const SimParams& p, const DrapeParams& d, RunControl& rc, double* residual,
+             bool keep_anchor = false, bool keep_contacts = false);
+  const RowMatX3d& anchor() const { return anchor_; }
+  double anchor_stiffness() const { return anchor_k_; }
+  EnergyContext energy_context(const Vec3& gravity) const;
+  /// Force residual max_i |∇ᵢE| / (mean m |g|) over free vertices, with current contacts.
+  double residual(const RowMatX3d& x, const Vec3& gravity) const;
+  double max_penetration(const RowMatX3d& x) const { return collider_.max_penetration(x); }
+  void detect_contacts(const RowMatX3d& x, const SimParams& p);
+  const std::vector<Contact>& contacts() const { return contacts_; }
+  std::vector<int> free_dofs() const;
+
+ private:
+  ClothModel model_;
+  ClothControl control_;
+  RestCache cache_;
+  BodyCollider collider_;
+  std::vector<Contact> contacts_;
+  RowMatX3d anchor_;
+  double anchor_k_ = 0.0;
+};
+
+}  // namespace diffavatar

@@ -1,0 +1,185 @@
+"""A garment ready to simulate: Model (topology, masses, seams, body topology), Control (rest
+pattern, material, body vertices) and State (x, v) kept apart, over the C++ XpbdSolver."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .. import _core, _validate
+from .material import ClothMaterial
+
+
+class SimulationDiverged(RuntimeError):
+    """A drape produced non-finite or absurd velocities; the state holds the last finite step."""
+
+    def __init__(self, result: "DrapeResult"):
+        super().__init__(result.message)
+        self.result = result
+
+
+@dataclass
+class DrapeResult:
+    converged: bool
+    settled: bool
+    diverged: bool
+    steps: int
+    refine_iterations: int
+    max_speed: float        # m/s at the end of the XPBD phase
+    residual: float         # max |net force| / mean vertex weight
+    max_penetration: float  # m below the body surface
+    wall_s: float
+    message: str
+
+    def to_json(self) -> dict:
+        d = dict(self.__dict__)
+        d["max_penetration_mm"] = 1e3 * d.pop("max_penetration")
+        return d
+
+
+def _sim_params(dt, iterations, gravity, damping, contact_radius, max_speed):
+    p = _core.SimParams()
+    if not (np.isfinite(dt) and dt > 0):
+        raise ValueError(f"dt: expected a time step > 0 s, got {dt}")
+    p.dt = float(dt)
+    p.iterations = _validate.positive_int("iterations", iterations)
+    g = np.asarray(gravity, dtype=np.float64).reshape(-1)
+    if g.shape != (3,) or not np.all(np.isfinite(g)):
+        raise ValueError(f"gravity: expected a finite (3,) vector in m/s², got {gravity}")
+    p.gravity = g
+    p.damping = float(damping)
+    p.contact_radius = float(contact_radius)
+    p.max_speed = float(max_speed)
+    return p
+
+
+class Cloth:
+    """Build from numpy arrays (all metres):
+
+    rest (V,2): the sewing pattern (each triangle counter-clockwise); faces (F,3); x0 (V,3)
+    initial 3D positions; seams (S,2) vertex pairs sewn together; pinned: vertex indices held
+    fixed; groups (F,) material group per triangle (e.g. per panel) with one ClothMaterial per
+    group (density from the first); body: (vertices (Vb,3), faces (Fb,3)) collider or None;
+    thickness h (m), contact stiffness (N/m), seam compliance (m/N).
+    """
+
+    def __init__(self, rest, faces, x0, seams=None, pinned=None, groups=None,
+                 materials: ClothMaterial | list[ClothMaterial] | None = None, body=None,
+                 thickness: float = 0.004, contact_stiffness: float = 2.0e3,
+                 seam_compliance: float = 1.0e-5):
+        rest = _validate.points("rest", rest, dims=2)
+        F = _validate.faces("faces", faces, len(rest))
+        x0 = _validate.points("x0", x0)
+        if len(x0) != len(rest):
+            raise ValueError(f"x0: expected {len(rest)} rows (one per rest vertex), got {len(x0)}")
+        seams = np.zeros((0, 2), np.int32) if seams is None else np.asarray(seams)
+        if seams.ndim != 2 or seams.shape[1] != 2:
+            raise ValueError(f"seams: expected shape (S, 2), got {seams.shape}")
+        if len(seams) and (seams.min() < 0 or seams.max() >= len(rest)):
+            raise ValueError(f"seams: vertex index out of range [0, {len(rest)})")
+        seams = np.ascontiguousarray(seams, dtype=np.int32)
+        pinned = [] if pinned is None else [int(i) for i in np.asarray(pinned).reshape(-1)]
+        groups = np.zeros(len(F), np.int32) if groups is None else np.asarray(groups, dtype=np.int32)
+        if groups.shape != (len(F),) or (len(groups) and groups.min() < 0):
+            raise ValueError(f"groups: expected ({len(F)},) non-negative ints, got shape {groups.shape}")
+        ng = int(groups.max()) + 1 if len(groups) else 1
+        if materials is None:
+            materials = ClothMaterial()
+        if isinstance(materials, ClothMaterial):
+            materials = [materials] * ng
+        if len(materials) != ng:
+            raise ValueError(f"materials: expected {ng} (one per group), got {len(materials)}")
+        if body is None:
+            bV, bF = np.zeros((0, 3)), np.zeros((0, 3), np.int32)
+        else:
+            bV, bF = _validate.mesh("body vertices", body[0], "body faces", body[1])
+        self.materials = list(materials)
+        model = _core.build_cloth_model(len(rest), F, rest, groups, seams, pinned, bF,
+                                        materials[0].density, float(thickness),
+                                        float(contact_stiffness), float(seam_compliance))
+        control = _core.ClothControl(rest, np.array([m.compliance for m in materials]),
+                                     np.array([m.bend_stiffness for m in materials]), bV)
+        self.solver = _core.XpbdSolver(model, control)
+        self.state = self.solver.make_state(x0)
+        self.body_faces = bF
+
+    # --- Model / Control / State ------------------------------------------------------------
+    @property
+    def model(self):
+        return self.solver.model
+
+    @property
+    def control(self):
+        """A copy of the control; change it through set_control (validated)."""
+        return self.solver.control
+
+    def set_control(self, rest=None, stretch_compliance=None, bend_stiffness=None, body_vertices=None):
+        c = self.solver.control
+        if rest is not None:
+            c.rest = _validate.points("rest", rest, dims=2)
+        if stretch_compliance is not None:
+            c.stretch_compliance = np.asarray(stretch_compliance, dtype=np.float64).reshape(-1, 3)
+        if bend_stiffness is not None:
+            c.bend_stiffness = np.asarray(bend_stiffness, dtype=np.float64).reshape(-1)
+        if body_vertices is not None:
+            c.body_vertices = _validate.points("body_vertices", body_vertices, allow_empty=True)
+        self.solver.set_control(c)
+
+    @property
+    def x(self) -> np.ndarray:
+        """Positions (V,3) m: a view into the C++ state (no copy)."""
+        return self.state.x
+
+    def reset(self, x) -> None:
+        self.state = self.solver.make_state(_validate.points("x", x))
+
+    # --- Simulation ---------------------------------------------------------------------------
+    def step(self, n: int = 1, dt: float = 1 / 120, iterations: int = 100, gravity=(0, -9.81, 0),
+             damping: float = 4.0, contact_radius: float = 0.01, max_speed: float = 50.0) -> float:
+        """n XPBD steps; returns the max vertex speed (m/s) after the last one."""
+        p = _sim_params(dt, iterations, gravity, damping, contact_radius, max_speed)
+        return self.solver.step(self.state, p, _validate.positive_int("n", n))
+
+    def drape(self, max_steps: int = 2000, min_steps: int = 20, speed_tol: float = 2e-3,
+              refine: bool = True, residual_tol: float = 1e-5, refine_iterations: int = 60, anchor_stiffness: float = 1.0,
+              dt: float = 1 / 120, iterations: int = 100, gravity=(0, -9.81, 0), damping: float = 4.0,
+              contact_radius: float = 0.01, max_speed: float = 50.0, progress=None, cancel=None,
+              raise_on_divergence: bool = True) -> DrapeResult:
+        """Quasi-static drape: XPBD until every vertex is slower than speed_tol (m/s) or
+        max_steps, then (refine=True) Newton refinement of the same energy to a relative force
+        residual ≤ residual_tol; anchor_stiffness κ (1/s²) ties each vertex to its settled
+        position with a spring of stiffness κ·m (a static-friction proxy that also removes the
+        zero-energy sliding modes of a frictionless contact). Releases the GIL; progress(ProgressEvent); cancel: CancelToken."""
+        p = _sim_params(dt, iterations, gravity, damping, contact_radius, max_speed)
+        self.params = p
+        d = _core.DrapeParams()
+        d.max_steps = _validate.positive_int("max_steps", max_steps)
+        d.min_steps = int(min_steps)
+        d.speed_tol = float(speed_tol)
+        d.refine = bool(refine)
+        d.residual_tol = float(residual_tol)
+        d.refine_iterations = int(refine_iterations)
+        d.anchor_stiffness = float(anchor_stiffness)
+        r = self.solver.drape(self.state, p, d, progress, cancel)
+        res = DrapeResult(r.converged, r.settled, r.diverged, r.steps, r.refine_iterations, r.max_speed,
+                          r.residual, r.max_penetration, r.wall_s, r.message)
+        if res.diverged and raise_on_divergence:
+            raise SimulationDiverged(res)
+        return res
+
+    def refine(self, keep_anchor: bool = True, keep_contacts: bool = False, residual_tol: float = 1e-5, refine_iterations: int = 60,
+               anchor_stiffness: float = 1.0, progress=None, cancel=None) -> tuple[int, float]:
+        """Newton refinement of the current state to equilibrium with the last drape's simulation
+        parameters; keep_anchor reuses the anchors of the last refinement and keep_contacts its
+        contact set (what the equilibrium adjoint differentiates). Returns (iterations, residual)."""
+        d = _core.DrapeParams()
+        d.residual_tol = float(residual_tol)
+        d.refine_iterations = int(refine_iterations)
+        d.anchor_stiffness = float(anchor_stiffness)
+        p = getattr(self, "params", None) or _sim_params(1 / 120, 100, (0, -9.81, 0), 4.0, 0.01, 50.0)
+        return self.solver.refine(self.state, p, d, keep_anchor, keep_contacts, progress, cancel)
+
+    def energy(self, x=None, gravity=(0, -9.81, 0)) -> float:
+        """Total potential energy (J) at x (default: current) with the current contact set."""
+        x = self.x if x is None else _validate.points("x", x)
+        return self.solver.energy(x, np.asarray(gravity, dtype=np.float64))
