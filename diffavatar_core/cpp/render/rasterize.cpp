@@ -7,57 +7,108 @@
 
 namespace diffavatar {
 
+namespace {
+
+constexpr int kBandRows = 8;  // rows per work item: a band is filled by one thread
+
+/// Screen-space set-up of one triangle: edge functions e_k(x, y) = a_k x + b_k y + c_k, each
+/// ≥ 0 inside (the triangle is oriented so that this holds), normalized so e_0 + e_1 + e_2 = 1
+/// (screen barycentrics); per-vertex depth z_k (m) and its inverse.
+struct TriSetup {
+  double a[3], b[3], c[3];
+  double z[3], iz[3];
+  int x0, x1, y0, y1;  // inclusive pixel bounds
+};
+
+}  // namespace
+
 RasterResult rasterize(const RefX3d& V, const RefX3i& F, const Camera& cam) {
+  check_camera(cam);
   const int W = cam.width, H = cam.height;
+  const CameraFrame fr(cam);
   RasterResult out;
   out.face.setConstant(H, W, -1);
   out.depth.setConstant(H, W, std::numeric_limits<double>::infinity());
-  // camera frame: forward f, right r, true up u
-  const Vec3 f = (cam.target - cam.eye).normalized();
-  const Vec3 r = f.cross(cam.up).normalized();
-  const Vec3 u = r.cross(f);
-  const double focal = 0.5 * H / std::tan(0.5 * cam.fov_y);
-  const double near = 0.01;
-  // project every vertex: screen x right, y down, z = depth along f
-  RowMatX3d P(V.rows(), 3);
-  for (Eigen::Index i = 0; i < V.rows(); ++i) {
+  out.bary.setZero(static_cast<Eigen::Index>(H) * W, 3);
+
+  const bool ortho = cam.orthographic;
+  const double focal = ortho ? H / cam.ortho_height : 0.5 * H / std::tan(0.5 * cam.fov_y);
+  const Eigen::Index nv = V.rows();
+  RowMatX3d P(nv, 3);  // screen x, screen y, depth along f (m)
+  for (Eigen::Index i = 0; i < nv; ++i) {
     const Vec3 d = V.row(i).transpose() - cam.eye;
-    const double z = d.dot(f);
+    const double z = d.dot(fr.f);
+    const double s = ortho ? focal : (z > cam.near ? focal / z : 0.0);
+    P(i, 0) = 0.5 * W + s * d.dot(fr.r);
+    P(i, 1) = 0.5 * H - s * d.dot(fr.u);
     P(i, 2) = z;
-    P(i, 0) = z > near ? 0.5 * W + focal * d.dot(r) / z : 0.0;
-    P(i, 1) = z > near ? 0.5 * H - focal * d.dot(u) / z : 0.0;
   }
-  // bin triangles by the rows they span, then fill rows in parallel (no write conflicts)
-  std::vector<std::vector<int>> rows(H);
+
+  // Triangle set-up and binning into row bands (in face order, which fixes tie-breaking).
+  const int nb = (H + kBandRows - 1) / kBandRows;
+  std::vector<TriSetup> tris;
+  std::vector<int> tri_face;
+  std::vector<std::vector<int>> bands(nb);
   for (Eigen::Index t = 0; t < F.rows(); ++t) {
-    const int a = F(t, 0), b = F(t, 1), c = F(t, 2);
-    if (P(a, 2) <= near || P(b, 2) <= near || P(c, 2) <= near) continue;
-    const double ymin = std::min({P(a, 1), P(b, 1), P(c, 1)}), ymax = std::max({P(a, 1), P(b, 1), P(c, 1)});
-    const int j0 = std::max(0, static_cast<int>(std::ceil(ymin - 0.5))), j1 = std::min(H - 1, static_cast<int>(std::floor(ymax - 0.5)));
-    for (int j = j0; j <= j1; ++j) rows[j].push_back(static_cast<int>(t));
+    int id[3] = {F(t, 0), F(t, 1), F(t, 2)};
+    if (!ortho && (P(id[0], 2) <= cam.near || P(id[1], 2) <= cam.near || P(id[2], 2) <= cam.near)) continue;
+    double x[3], y[3];
+    for (int k = 0; k < 3; ++k) x[k] = P(id[k], 0), y[k] = P(id[k], 1);
+    const double area2 = (x[1] - x[0]) * (y[2] - y[0]) - (y[1] - y[0]) * (x[2] - x[0]);
+    if (!(std::abs(area2) > 0.0) || !std::isfinite(area2)) continue;
+    const double xmin = std::min({x[0], x[1], x[2]}), xmax = std::max({x[0], x[1], x[2]});
+    const double ymin = std::min({y[0], y[1], y[2]}), ymax = std::max({y[0], y[1], y[2]});
+    TriSetup s;
+    s.x0 = std::max(0, static_cast<int>(std::ceil(xmin - 0.5)));
+    s.x1 = std::min(W - 1, static_cast<int>(std::floor(xmax - 0.5)));
+    s.y0 = std::max(0, static_cast<int>(std::ceil(ymin - 0.5)));
+    s.y1 = std::min(H - 1, static_cast<int>(std::floor(ymax - 0.5)));
+    if (s.x0 > s.x1 || s.y0 > s.y1) continue;
+    // e_k is the signed area opposite vertex k: e_k(p) = cross(v_{k+2} - v_{k+1}, p - v_{k+1}) / area2
+    for (int k = 0; k < 3; ++k) {
+      const int k1 = (k + 1) % 3, k2 = (k + 2) % 3;
+      s.a[k] = -(y[k2] - y[k1]) / area2;
+      s.b[k] = (x[k2] - x[k1]) / area2;
+      s.c[k] = ((y[k2] - y[k1]) * x[k1] - (x[k2] - x[k1]) * y[k1]) / area2;
+      s.z[k] = P(id[k], 2);
+      s.iz[k] = ortho ? 0.0 : 1.0 / s.z[k];
+    }
+    const int idx = static_cast<int>(tris.size());
+    tris.push_back(s);
+    tri_face.push_back(static_cast<int>(t));
+    for (int bnd = s.y0 / kBandRows; bnd <= s.y1 / kBandRows; ++bnd) bands[bnd].push_back(idx);
   }
-#pragma omp parallel for schedule(dynamic, 8)
-  for (int j = 0; j < H; ++j) {
-    const double py = j + 0.5;
-    for (int t : rows[j]) {
-      const int ia = F(t, 0), ib = F(t, 1), ic = F(t, 2);
-      const double ax = P(ia, 0), ay = P(ia, 1), bx = P(ib, 0), by = P(ib, 1), cx = P(ic, 0), cy = P(ic, 1);
-      const double area = (bx - ax) * (cy - ay) - (by - ay) * (cx - ax);
-      if (area == 0.0) continue;
-      const double xmin = std::min({ax, bx, cx}), xmax = std::max({ax, bx, cx});
-      const int i0 = std::max(0, static_cast<int>(std::ceil(xmin - 0.5))), i1 = std::min(W - 1, static_cast<int>(std::floor(xmax - 0.5)));
-      for (int i = i0; i <= i1; ++i) {
-        const double px = i + 0.5;
-        double w0 = ((bx - px) * (cy - py) - (by - py) * (cx - px)) / area;
-        double w1 = ((cx - px) * (ay - py) - (cy - py) * (ax - px)) / area;
-        double w2 = 1.0 - w0 - w1;
-        if (w0 < 0 || w1 < 0 || w2 < 0) continue;
-        // perspective-correct depth: 1/z interpolates linearly in screen space
-        const double inv_z = w0 / P(ia, 2) + w1 / P(ib, 2) + w2 / P(ic, 2);
-        const double z = 1.0 / inv_z;
-        if (z < out.depth(j, i)) {
-          out.depth(j, i) = z;
-          out.face(j, i) = t;
+
+#pragma omp parallel for schedule(dynamic, 1)
+  for (int bnd = 0; bnd < nb; ++bnd) {
+    const int r0 = bnd * kBandRows, r1 = std::min(H - 1, r0 + kBandRows - 1);
+    for (int idx : bands[bnd]) {
+      const TriSetup& s = tris[idx];
+      const int j0 = std::max(r0, s.y0), j1 = std::min(r1, s.y1);
+      for (int j = j0; j <= j1; ++j) {
+        const double py = j + 0.5;
+        for (int i = s.x0; i <= s.x1; ++i) {
+          const double px = i + 0.5;
+          const double e0 = s.a[0] * px + s.b[0] * py + s.c[0];
+          const double e1 = s.a[1] * px + s.b[1] * py + s.c[1];
+          const double e2 = s.a[2] * px + s.b[2] * py + s.c[2];
+          if (e0 < 0.0 || e1 < 0.0 || e2 < 0.0) continue;
+          double z, b0, b1, b2;
+          if (ortho) {
+            z = e0 * s.z[0] + e1 * s.z[1] + e2 * s.z[2];
+            b0 = e0, b1 = e1, b2 = e2;
+          } else {
+            const double q0 = e0 * s.iz[0], q1 = e1 * s.iz[1], q2 = e2 * s.iz[2];
+            const double iz = q0 + q1 + q2;
+            z = 1.0 / iz;
+            b0 = q0 * z, b1 = q1 * z, b2 = q2 * z;
+          }
+          if (z < out.depth(j, i)) {
+            out.depth(j, i) = z;
+            out.face(j, i) = tri_face[idx];
+            const Eigen::Index p = static_cast<Eigen::Index>(j) * W + i;
+            out.bary(p, 0) = b0, out.bary(p, 1) = b1, out.bary(p, 2) = b2;
+          }
         }
       }
     }
