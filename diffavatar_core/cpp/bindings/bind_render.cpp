@@ -28,8 +28,11 @@ void bind_render(py::module_& m) {
         [](const RefX3d& V, const RefX3i& F, const Vec3& eye, const Vec3& target, const Vec3& up, bool orthographic,
            double fov_y, double ortho_height, int width, int height, double near) {
           const Camera cam = make_camera(eye, target, up, orthographic, fov_y, ortho_height, width, height, near);
-          py::gil_scoped_release nogil;
-          RasterResult r = rasterize(V, F, cam);
+          RasterResult r;
+          {
+            py::gil_scoped_release nogil;
+            r = rasterize(V, F, cam);
+          }
           return py::make_tuple(std::move(r.face), std::move(r.depth), std::move(r.bary));
         },
         py::arg("V").noconvert(), py::arg("F").noconvert(), py::arg("eye"), py::arg("target"), py::arg("up"),
