@@ -70,3 +70,20 @@ def test_ssim_metric_self_is_one_and_perturbation_lowers_it():
     assert values[0] > values[1] > values[2], values
     # a garment that is missing entirely scores lower still than a slightly perturbed one
     assert ssim_metric(scan, body, None, size=96) < values[0]
+
+
+def test_preview_command(tmp_path, capsys):
+    import json
+
+    from diffavatar_core.cli import main
+    from diffavatar_core.io import save_mesh
+    garment, body = body_and_garment()
+    save_mesh(tmp_path / "scan.obj", *scan_of(garment, body))
+    save_mesh(tmp_path / "garment.obj", *garment)
+    save_mesh(tmp_path / "body.obj", *body)
+    out = tmp_path / "p.png"
+    rc = main(["preview", str(tmp_path / "scan.obj"), "--garment", str(tmp_path / "garment.obj"),
+               "--body", str(tmp_path / "body.obj"), "--out", str(out), "--size", "64"])
+    assert rc == 0 and out.exists()
+    res = json.loads(capsys.readouterr().out)
+    assert res["ssim"] == pytest.approx(1.0, abs=1e-9)

@@ -245,3 +245,12 @@ def test_invalid_inputs_raise_value_error_naming_the_argument():
         render([(V, F)], cam, 32, supersample=9)
     with pytest.raises(ValueError, match="camera"):
         render([(V, F)], "front", 32)
+
+
+def test_triangle_grazing_the_near_plane_is_drawn_without_overflow():
+    """A vertex just beyond the near plane projects ~1e9 px off screen (beyond int32): the triangle is still
+    clipped to the image correctly (pixel bounds are clamped before integer conversion)."""
+    cam = Camera(eye=(0, 0, 1), target=(0, 0, 0), fov_y=1.0, near=1e-11)
+    V = np.array([[-0.5, -0.5, 0.0], [0.5, -0.5, 0.0], [0.2, 0.3, 1.0 - 1e-9]])
+    face, depth, _ = rasterize(V, np.array([[0, 1, 2]]), cam, 32)
+    assert (face == 0).sum() > 0 and np.all(depth[face == 0] > 0)

@@ -58,11 +58,12 @@ RasterResult rasterize(const RefX3d& V, const RefX3i& F, const Camera& cam) {
     if (!(std::abs(area2) > 0.0) || !std::isfinite(area2)) continue;
     const double xmin = std::min({x[0], x[1], x[2]}), xmax = std::max({x[0], x[1], x[2]});
     const double ymin = std::min({y[0], y[1], y[2]}), ymax = std::max({y[0], y[1], y[2]});
+    // pixel bounds, clamped in double first: near-plane vertices project far off screen
+    auto lo = [](double v, int n) { return static_cast<int>(std::clamp(std::ceil(v - 0.5), 0.0, double(n))); };
+    auto hi = [](double v, int n) { return static_cast<int>(std::clamp(std::floor(v - 0.5), -1.0, double(n - 1))); };
     TriSetup s;
-    s.x0 = std::max(0, static_cast<int>(std::ceil(xmin - 0.5)));
-    s.x1 = std::min(W - 1, static_cast<int>(std::floor(xmax - 0.5)));
-    s.y0 = std::max(0, static_cast<int>(std::ceil(ymin - 0.5)));
-    s.y1 = std::min(H - 1, static_cast<int>(std::floor(ymax - 0.5)));
+    s.x0 = lo(xmin, W), s.x1 = hi(xmax, W);
+    s.y0 = lo(ymin, H), s.y1 = hi(ymax, H);
     if (s.x0 > s.x1 || s.y0 > s.y1) continue;
     // e_k is the signed area opposite vertex k: e_k(p) = cross(v_{k+2} - v_{k+1}, p - v_{k+1}) / area2
     for (int k = 0; k < 3; ++k) {
