@@ -181,7 +181,7 @@ def test_render_is_deterministic_for_any_thread_count():
     before = dc.num_threads()
     try:
         outs = []
-        for t in (2, 2, 1):
+        for t in (2, 2, 1, 3):
             dc.set_num_threads(t)
             outs.append((render([(V2, F), (V + [0.3, 0, 0], F)], cam, 200, smooth=True, supersample=2),
                          rasterize(V2, F, cam, 200)))
