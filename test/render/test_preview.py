@@ -87,3 +87,25 @@ def test_preview_command(tmp_path, capsys):
     assert rc == 0 and out.exists()
     res = json.loads(capsys.readouterr().out)
     assert res["ssim"] == pytest.approx(1.0, abs=1e-9)
+
+
+def test_write_result_with_scan_writes_preview_and_ssim(tmp_path):
+    import json
+
+    from diffavatar_core.pipeline.output import write_result
+    from diffavatar_core.pipeline.result import BodyAssets, MaterialAssets, PatternAssets, RecoveryResult
+    garment, body = body_and_garment()
+    Vg, Fg = garment
+    uv = Vg[:, :2].copy()
+    pattern = PatternAssets(uv, Fg, np.array([0, len(Vg)]), ["tube"], np.zeros(1), np.zeros((0, 2), int),
+                            np.zeros(0, int))
+    material = MaterialAssets(2e-6, np.zeros(0), 1e-3, 1e-3, 5e-3, 0.15, 0.004)
+    body_assets = BodyAssets("capsule", np.zeros(0), ["root"], np.zeros((1, 3)), np.ones(1), np.zeros(6))
+    r = RecoveryResult("skirt", "tube", pattern, material, body_assets, Vg, Fg, uv, body[0], body[1],
+                       {"chamfer_final_cm": 0.0}, iterations=1, wall_s=0.1)
+    scan = scan_of(garment, body)
+    out = write_result(r, tmp_path / "job", scan=scan)
+    summary = json.loads((out / "result.json").read_text())
+    assert summary["metrics"]["ssim"] == pytest.approx(1.0, abs=1e-9)
+    png = np.asarray(Image.open(out / "preview.png").convert("RGB"))
+    assert png.std() > 10 and (png < 250).any(axis=2).mean() > 0.05
