@@ -107,12 +107,20 @@ def plot_loss(path: pathlib.Path, history: list, size=(800, 480)) -> None:
     img.save(path)
 
 
-def write_result(result: RecoveryResult, out_dir: str | pathlib.Path) -> pathlib.Path:
+def write_result(result: RecoveryResult, out_dir: str | pathlib.Path, scan=None) -> pathlib.Path:
     """Writes every output file; returns the directory. Existing files of a previous run in the
-    same directory are overwritten."""
+    same directory are overwritten. With `scan` ((V, F) of the input scan, m, core frame) also
+    writes preview.png (scan vs result from 4 views) and sets metrics["ssim"], the mean render
+    SSIM over those views (paper Table 1), before result.json is written."""
     out = pathlib.Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     result.output_dir = str(out)
+    if scan is not None:
+        from ..render import preview_side_by_side, ssim_metric
+        garment = (result.garment_vertices, result.garment_faces)
+        body = (result.body_vertices, result.body_faces)
+        result.metrics["ssim"] = ssim_metric(scan, garment, body)
+        preview_side_by_side(scan, [garment, body], out / "preview.png")
     (out / "result.json").write_text(json.dumps(result_summary(result), indent=2))
     p = result.pattern
     _obj(out / "garment_rest.obj", np.column_stack([p.rest_xy, np.zeros(len(p.rest_xy))]), p.triangles,

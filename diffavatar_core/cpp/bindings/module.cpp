@@ -12,6 +12,7 @@ void bind_common(py::module_& m);
 void bind_geometry(py::module_& m);
 void bind_loss(py::module_& m);
 void bind_sim(py::module_& m);
+void bind_render(py::module_& m);
 }  // namespace diffavatar
 
 PYBIND11_MODULE(_core, m) {
@@ -20,6 +21,7 @@ PYBIND11_MODULE(_core, m) {
   diffavatar::bind_geometry(m);
   diffavatar::bind_loss(m);
   diffavatar::bind_sim(m);
+  diffavatar::bind_render(m);
   m.def("openmp_max_threads", []() {
 #ifdef _OPENMP
     return omp_get_max_threads();
