@@ -80,7 +80,8 @@ def small_components(V: np.ndarray, F: np.ndarray, min_fraction: float) -> tuple
     n, comp = face_components(F, V.shape[0])
     area = triangle_areas(V, F)
     comp_area = np.bincount(comp, weights=area, minlength=n)
-    small = comp_area < min_fraction * comp_area.max()
+    has_faces = np.bincount(comp, minlength=n) > 0     # isolated vertices are no parts
+    small = has_faces & (comp_area < min_fraction * comp_area.max())
     drop = small[comp]
     dropped = []
     for c in np.flatnonzero(small)[np.argsort(-comp_area[small])]:
@@ -88,7 +89,7 @@ def small_components(V: np.ndarray, F: np.ndarray, min_fraction: float) -> tuple
         vids = np.unique(F[fc])
         w = area[fc]
         centers = V[F[fc]].mean(axis=1)
-        centroid = (w @ centers) / w.sum() if w.sum() > 0 else centers.mean(axis=0)
+        centroid = (w @ centers) / w.sum() if w.sum() > 0 else centers.mean(axis=0)  # fc non-empty
         dropped.append(DroppedComponent(int(fc.sum()), len(vids), float(comp_area[c]),
                                         tuple(float(x) for x in centroid)))
     return drop, dropped
