@@ -100,14 +100,45 @@ def _ply_labels(mesh) -> np.ndarray | None:
     return None
 
 
+def read_obj(path: pathlib.Path) -> tuple[np.ndarray, np.ndarray]:
+    """(V (N, 3), F (M, 3)) of a Wavefront OBJ as stored: `v` lines in order, `f` polygons
+    (v, v/vt, v//vn, v/vt/vn; negative = relative) fan-triangulated, everything else ignored.
+    Indices are checked by the caller (an out-of-range index is reported, not fixed)."""
+    verts, faces = [], []
+    with open(path, encoding="utf-8", errors="replace") as fh:
+        for ln, line in enumerate(fh, 1):
+            if line.startswith("v "):
+                parts = line.split()
+                if len(parts) < 4:
+                    raise ScanFormatError(f"{path}:{ln}: a vertex needs 3 coordinates: {line.strip()!r}")
+                try:
+                    verts.append((float(parts[1]), float(parts[2]), float(parts[3])))
+                except ValueError:
+                    raise ScanFormatError(f"{path}:{ln}: not a number in {line.strip()!r}") from None
+            elif line.startswith("f "):
+                try:
+                    idx = [int(tok.split("/")[0]) for tok in line.split()[1:]]
+                except ValueError:
+                    raise ScanFormatError(f"{path}:{ln}: bad face {line.strip()!r}") from None
+                if len(idx) < 3:
+                    raise ScanFormatError(f"{path}:{ln}: a face needs 3 or more vertices: {line.strip()!r}")
+                n = len(verts)
+                idx = [i - 1 if i > 0 else n + i for i in idx]
+                faces.extend((idx[0], idx[k], idx[k + 1]) for k in range(1, len(idx) - 1))
+    return (np.asarray(verts, np.float64).reshape(-1, 3), np.asarray(faces, np.int64).reshape(-1, 3))
+
+
 def read_scan_file(path: str | pathlib.Path) -> RawScan:
     """A RawScan from a mesh file. PLY: the per-vertex `label` property (if present) becomes the
-    labels; OBJ and other formats: garment-only (labels None). Vertices are kept as stored
-    (an OBJ's vertices split at UV seams are merged later, in preprocessing)."""
+    labels; OBJ (own reader: vertices exactly as stored, seams split in the file are merged
+    later, in preprocessing) and other formats trimesh reads: garment-only (labels None)."""
     import trimesh
     p = pathlib.Path(path)
     if not p.exists():
         raise FileNotFoundError(f"{p}: no such file")
+    if p.suffix.lower() == ".obj":
+        V, F = read_obj(p)
+        return scan_from_arrays(V, F, None, None, source=str(p))
     try:
         m = trimesh.load(str(p), force="mesh", process=False)
     except Exception as exc:  # trimesh raises many types for unreadable files
