@@ -23,11 +23,18 @@ def boundary_loops(F: np.ndarray) -> list[np.ndarray]:
     F (M, 3). Loops follow the triangles' winding (majority vote where it is inconsistent); at a
     vertex with more than two boundary edges (non-manifold) the walk takes the first unused one,
     and a walk that cannot close is returned as the open chain it found."""
+    if len(F) == 0:
+        return []
+    F = np.asarray(F, dtype=np.int64)
     he = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
-    key = np.sort(he, axis=1)
-    _, inv, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
-    inv = inv.reshape(-1)
-    bhe = he[counts[inv] == 1]                      # directed boundary half-edges
+    n = int(F.max()) + 1
+    key = np.minimum(he[:, 0], he[:, 1]) * n + np.maximum(he[:, 0], he[:, 1])   # undirected edge id
+    order = np.argsort(key, kind="stable")
+    ks = key[order]
+    starts = np.flatnonzero(np.r_[True, ks[1:] != ks[:-1]])
+    counts = np.diff(np.r_[starts, len(ks)])
+    single = order[starts[counts == 1]]
+    bhe = he[np.sort(single)]                       # directed boundary half-edges, face order
     if len(bhe) == 0:
         return []
     directed = set(map(tuple, bhe.tolist()))

@@ -85,6 +85,13 @@ class ScanData:
         V, F, _ = cleaning.compact(self.vertices, self.faces, self.garment_face_mask)
         return V, F
 
+    def label_vertex_mask(self, label) -> np.ndarray:
+        """(N,) bool: the vertices carrying a label (class name or value), e.g. 'body' for the
+        body fitting; all False for a garment-only scan."""
+        if self.labels is None:
+            return np.zeros(len(self.vertices), bool)
+        return self.labels == LabelMap(self.label_names, {}).value_of(label)
+
     def to_dict(self, points: bool = False) -> dict:
         """JSON-able summary (lengths in m); points=True includes the loop points."""
         def loop(P):

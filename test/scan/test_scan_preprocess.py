@@ -178,3 +178,24 @@ def test_cli_reports_bad_input_as_an_error(synthetic_ply, capsys):
     assert main(["scan-info", str(synthetic_ply["ascii"]), "--units", "m", "--up", "z"]) == 2
     err = capsys.readouterr().err
     assert "170 m tall" in err and "units=cm would make it 1.7 m tall" in err
+
+
+def test_skirt_region_cut_out_of_one_connected_labelled_surface():
+    """A full scan is usually one connected surface: the garment region ends where the labels
+    change. A capsule 'body' with a skirt band labelled on it gives the waist (top) and the
+    hem (bottom) exactly at the label borders."""
+    import trimesh
+    m = trimesh.creation.uv_sphere(radius=1.0, count=[48, 64])                 # rings of constant z
+    V = np.asarray(m.vertices)[:, [0, 2, 1]] * [0.2, 0.85, -0.15] + [0, 0.85, 0]   # 1.7 m, axis Y
+    F = np.asarray(m.faces)[:, [0, 2, 1]]
+    band = (V[:, 1] > 0.55) & (V[:, 1] < 1.05)
+    L = np.where(band, 3, 0)
+    s = load_scan((V, F, L))
+    assert s.garment_class == "skirt" and set(s.boundaries) == {"waist", "hem"}, s.warnings
+    top, bottom = V[band, 1].max(), V[band, 1].min()
+    np.testing.assert_allclose(s.boundaries["waist"][:, 1], top, atol=1e-12)
+    np.testing.assert_allclose(s.boundaries["hem"][:, 1], bottom, atol=1e-12)
+    assert len(s.boundaries["waist"]) == np.count_nonzero(np.isclose(V[:, 1], top))
+    assert s.holes == []
+    np.testing.assert_array_equal(s.label_vertex_mask("body"), L == 0)
+    np.testing.assert_array_equal(s.garment_vertex_mask, band)
