@@ -10,14 +10,15 @@ from .. import metrics
 
 
 def _densify(loops: list[np.ndarray], spacing: float) -> np.ndarray:
-    pts = []
-    for P in loops:
-        Q = np.roll(P, -1, axis=0)
-        for a, b in zip(P, Q):
-            k = max(1, int(np.ceil(np.linalg.norm(b - a) / spacing)))
-            t = np.arange(k)[:, None] / k
-            pts.append(a + t * (b - a))
-    return np.concatenate(pts) if pts else np.zeros((0, 3))
+    """Points along the closed polylines, every segment split into pieces ≤ spacing (m)."""
+    if not loops:
+        return np.zeros((0, 3))
+    A = np.concatenate(loops)
+    D = np.concatenate([np.roll(P, -1, axis=0) - P for P in loops])
+    k = np.maximum(1, np.ceil(np.linalg.norm(D, axis=1) / spacing).astype(np.int64))
+    seg = np.repeat(np.arange(len(A)), k)
+    t = (np.arange(k.sum()) - np.repeat(np.cumsum(k) - k, k)) / np.repeat(k, k)
+    return A[seg] + t[:, None] * D[seg]
 
 
 def interior_samples(V: np.ndarray, F: np.ndarray, loops: list[np.ndarray], n: int, margin: float,
