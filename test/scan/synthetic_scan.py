@@ -18,6 +18,21 @@ SHIRT_Y = 1.2                    # m, height of the tube's axis
 HEM_CUT, NECK_CUT = -0.30, 0.24  # m below / above the axis
 
 
+def shared_file(*parts: str):
+    """test/conftest.py's shared_file (path of a reference file, or skip the test). Loaded by
+    path: with several conftest.py files the plain name `conftest` is ambiguous."""
+    import importlib.util
+    import pathlib
+    import sys
+    name = "_diffavatar_root_conftest"
+    if name not in sys.modules:
+        spec = importlib.util.spec_from_file_location(name, pathlib.Path(__file__).parents[1] / "conftest.py")
+        mod = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(mod)
+        sys.modules[name] = mod
+    return sys.modules[name].shared_file(*parts)
+
+
 def _smooth_plateau(x):
     t = np.clip((np.abs(x) - 0.14) / 0.10, 0.0, 1.0)
     return 1.0 - t * t * (3 - 2 * t)

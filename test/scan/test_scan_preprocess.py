@@ -8,10 +8,9 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from conftest import shared_file
 from diffavatar_core import metrics
 from diffavatar_core.scan import OPENING_NAMES, ScanOptions, load_scan, scan_from_arrays
-from synthetic_scan import core_to_scan, synthetic, synthetic_ply  # noqa: F401 (fixtures)
+from synthetic_scan import core_to_scan, shared_file, synthetic, synthetic_ply  # noqa: F401 (fixtures)
 
 
 def _same_points(A, B, tol=1e-9):
