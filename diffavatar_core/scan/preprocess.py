@@ -34,6 +34,24 @@ class ScanOptions:
     interior_samples: int = 5000
     seed: int = 0
 
+    def __post_init__(self):
+        def bad(name, why):
+            raise ValueError(f"scan options: {name} {why}, got {getattr(self, name)!r}")
+        for name in ("min_height", "max_height", "merge_tolerance", "min_component_fraction",
+                     "min_opening_perimeter", "interior_margin"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v) or v < 0:
+                bad(name, "must be a non-negative number")
+        if not 0 < self.min_height < self.max_height:
+            raise ValueError(f"scan options: need 0 < min_height < max_height, got min_height="
+                             f"{self.min_height!r}, max_height={self.max_height!r}")
+        if self.min_component_fraction >= 1:
+            bad("min_component_fraction", "must be below 1")
+        for name in ("interior_samples", "seed"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 0:
+                bad(name, "must be a non-negative integer")
+
     @classmethod
     def from_config(cls, cfg: dict | None = None) -> "ScanOptions":
         """From a loaded configuration (load_config()), default: the project's."""
@@ -217,6 +235,9 @@ def preprocess_scan(raw: RawScan, units: str = "m", up: str = "y", label=None,
 
     # 4. garment region
     if labels is None:
+        if label is not None:
+            raise LabelError(f"{raw.source}: the scan has no per-vertex labels, so label={label!r} "
+                             f"cannot select a garment (give the garment type instead)")
         if not garment_type:
             raise NoGarmentError(f"{raw.source}: a garment-only scan (no per-vertex labels) needs "
                                  f"the garment type (e.g. garment_type='tshirt' / --garment)")

@@ -145,3 +145,25 @@ def test_unknown_units_up_axis_and_unreadable_files(synthetic, tmp_path):
         read_scan_file(q)
     with pytest.raises(FileNotFoundError):
         read_scan_file(tmp_path / "missing.ply")
+
+
+def test_label_given_for_an_unlabelled_scan(synthetic):
+    V, F, _ = _arrays(synthetic)
+    with pytest.raises(LabelError, match="no per-vertex labels"):
+        load_scan((V, F), label="upper", garment_type="tshirt")
+
+
+@pytest.mark.parametrize("field,value", [("min_height", 0.0), ("max_height", 0.1), ("merge_tolerance", -1.0),
+                                         ("min_component_fraction", 1.0), ("interior_samples", 2.5),
+                                         ("interior_margin", float("nan")), ("seed", -1)])
+def test_bad_options_are_named(field, value):
+    from diffavatar_core.scan import ScanOptions
+    with pytest.raises(ValueError, match=f"scan options: .*{field}"):
+        ScanOptions(**{field: value})
+
+
+def test_options_from_config_reject_unknown_keys():
+    from diffavatar_core.scan import ScanOptions
+    assert ScanOptions.from_config() == ScanOptions()        # config/diffavatar.yaml = the defaults
+    with pytest.raises(ValueError, match="scan.margin"):
+        ScanOptions.from_config({"scan": {"margin": 0.1}})
