@@ -18,11 +18,16 @@ HEM_MIN_PERIMETER_FRACTION = 0.5
 CENTRAL_MAX_OFFSET = 0.25
 
 
-def boundary_loops(F: np.ndarray) -> list[np.ndarray]:
+def boundary_loops(F: np.ndarray, V: np.ndarray | None = None) -> list[np.ndarray]:
     """Ordered vertex-index loops (each (K,) int64) of the edges used by exactly one triangle of
-    F (M, 3). Loops follow the triangles' winding (majority vote where it is inconsistent); at a
-    vertex with more than two boundary edges (non-manifold) the walk takes the first unused one,
-    and a walk that cannot close is returned as the open chain it found."""
+    F (M, 3), following the triangles' winding (majority vote where it is inconsistent).
+
+    Where loops touch at a vertex (a "bowtie", common along noisy label borders) and V (N, 3)
+    is given, the walk keeps to the hole it is going around: of the unused boundary edges
+    leaving the vertex it takes the first one met turning from the arrival edge through the
+    hole (counter-clockwise about the vertex normal), so touching holes come out as separate
+    loops. Without V, or where the winding is inconsistent, it takes the first unused edge; a
+    walk that cannot close is returned as the open chain it found."""
     if len(F) == 0:
         return []
     F = np.asarray(F, dtype=np.int64)
@@ -33,36 +38,62 @@ def boundary_loops(F: np.ndarray) -> list[np.ndarray]:
     ks = key[order]
     starts = np.flatnonzero(np.r_[True, ks[1:] != ks[:-1]])
     counts = np.diff(np.r_[starts, len(ks)])
-    single = order[starts[counts == 1]]
-    bhe = he[np.sort(single)]                       # directed boundary half-edges, face order
+    bhe = he[np.sort(order[starts[counts == 1]])]   # directed boundary half-edges, face order
     if len(bhe) == 0:
         return []
     directed = set(map(tuple, bhe.tolist()))
     adj: dict[int, list[tuple[int, int]]] = {}
+    out_count: dict[int, int] = {}
     for e, (a, b) in enumerate(bhe.tolist()):
         adj.setdefault(a, []).append((b, e))
         adj.setdefault(b, []).append((a, e))
+        out_count[a] = out_count.get(a, 0) + 1
+    normals = None
+    if V is not None and any(c > 1 for c in out_count.values()):
+        fn = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])   # area-weighted
+        normals = np.zeros((n, 3))
+        for k in range(3):
+            np.add.at(normals, F[:, k], fn)
     used = np.zeros(len(bhe), bool)
     loops = []
     for e0 in range(len(bhe)):
         if used[e0]:
             continue
         used[e0] = True
-        start, cur = int(bhe[e0, 0]), int(bhe[e0, 1])
+        start, prev, cur = int(bhe[e0, 0]), int(bhe[e0, 0]), int(bhe[e0, 1])
+        forward = True                               # arrived along the winding
         loop = [start]
         while cur != start:
             loop.append(cur)
-            nxt = next(((v, e) for v, e in adj[cur] if not used[e]), None)
+            cands = [(v, e) for v, e in adj[cur] if not used[e]]
+            outs = [(v, e) for v, e in cands if bhe[e, 0] == cur]
+            if len(outs) > 1 and normals is not None and forward:
+                nxt = min(outs, key=lambda c: _ccw_angle(V, normals[cur], cur, prev, c[0]))
+            else:
+                nxt = outs[0] if outs else (cands[0] if cands else None)
             if nxt is None:
                 break
             used[nxt[1]] = True
-            cur = nxt[0]
+            forward = bool(bhe[nxt[1], 0] == cur)
+            prev, cur = cur, nxt[0]
         lp = np.asarray(loop, dtype=np.int64)
         agree = sum((int(a), int(b)) in directed for a, b in zip(lp, np.roll(lp, -1)))
         if 2 * agree < len(lp):
             lp = lp[::-1].copy()
         loops.append(lp)
     return loops
+
+
+def _ccw_angle(V: np.ndarray, normal: np.ndarray, v: int, a: int, x: int) -> float:
+    """Angle in [0, 2π) turning counter-clockwise about `normal` from the direction v→a to
+    v→x (both projected onto the plane normal to `normal`)."""
+    nrm = normal / (np.linalg.norm(normal) or 1.0)
+    d1 = V[a] - V[v]
+    d2 = V[x] - V[v]
+    d1 = d1 - (d1 @ nrm) * nrm
+    d2 = d2 - (d2 @ nrm) * nrm
+    ang = np.arctan2(np.cross(d1, d2) @ nrm, d1 @ d2)
+    return float(ang % (2 * np.pi))
 
 
 def start_at_front(loop: np.ndarray, V: np.ndarray) -> np.ndarray:

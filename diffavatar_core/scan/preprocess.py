@@ -263,7 +263,7 @@ def preprocess_scan(raw: RawScan, units: str = "m", up: str = "y", label=None,
     gvert[F[gface].ravel()] = True
 
     # 5. boundary loops → openings and holes
-    loops = [bnd.start_at_front(lp, V) for lp in bnd.boundary_loops(F[gface])]
+    loops = [bnd.start_at_front(lp, V) for lp in bnd.boundary_loops(F[gface], V)]
     pts = [V[lp] for lp in loops]
     openings = lmap.garment_openings[cls]
     found, hole_ids = bnd.classify_loops(pts, openings, V[gvert], opt.min_opening_perimeter)

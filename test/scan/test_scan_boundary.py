@@ -122,3 +122,20 @@ def test_cleaning_helpers():
     np.testing.assert_array_equal(Vc, Vg)
     np.testing.assert_array_equal(Fc, Fg)
     np.testing.assert_array_equal(kept, np.arange(len(Vg)))
+
+
+@pytest.mark.parametrize("hole,sizes", [({(1, 1), (2, 2)}, [4, 4, 16]),    # two holes touching at a corner
+                                        ({(1, 2), (2, 1)}, [4, 4, 16]),    # the other diagonal
+                                        ({(0, 0), (1, 1)}, [4, 16])])      # a hole touching the rim
+def test_loops_touching_at_a_vertex_come_out_separate(hole, sizes):
+    V, F = _grid(4, hole=hole)
+    loops = boundary_loops(F, V)
+    assert sorted(len(lp) for lp in loops) == sizes
+    for lp in loops:
+        assert len(np.unique(lp)) == len(lp)                      # no figure-of-eight
+    # the 4-vertex loops are exactly the removed cells' corners
+    cells = sorted(sorted(lp.tolist()) for lp in loops if len(lp) == 4)
+    n = 5
+    want = sorted(sorted([i * n + j, (i + 1) * n + j, (i + 1) * n + j + 1, i * n + j + 1])
+                  for i, j in hole if 0 < i < 3 and 0 < j < 3)
+    assert cells == want
