@@ -215,3 +215,19 @@ def test_noisy_scan_with_label_noise_keeps_the_openings(synthetic, seed):
     for name, truth in synthetic.openings.items():
         assert np.linalg.norm(s.boundaries[name].mean(axis=0) - truth.mean(axis=0)) < 0.02, name
     assert len(s.holes) > 50                      # the mislabelled vertices' 1-rings
+
+
+def test_segmented_scan_message_round_trip(synthetic, data):
+    """The node's path: SegmentedScan message → msg_to_arrays → load_scan (float32 on the wire)."""
+    pytest.importorskip("diffavatar_msgs", reason="ROS interfaces (diffavatar_msgs) not built")
+    from diffavatar_ros.convert import msg_to_arrays, scan_to_msg
+    V = core_to_scan(synthetic.V, "cm", "z").astype(np.float32)
+    msg = scan_to_msg(V, synthetic.F.astype(np.uint32), synthetic.labels.astype(np.uint8),
+                      ["body", "upper", "dress", "skirt", "pants", "hair"], units="cm", up_axis="z",
+                      garment_type="tshirt")
+    s = load_scan(msg_to_arrays(msg))
+    assert s.garment_type == "tshirt" and s.garment_label == 1
+    np.testing.assert_allclose(s.vertices, data.vertices, rtol=0, atol=2e-7)   # float32 of ≤ 180 cm
+    assert set(s.boundaries) == set(data.boundaries)
+    for k in data.boundaries:
+        np.testing.assert_array_equal(s.boundary_indices[k], data.boundary_indices[k])
