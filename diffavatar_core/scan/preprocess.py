@@ -12,11 +12,11 @@ import numpy as np
 from ..config import load_config
 from . import boundary as bnd
 from . import cleaning
-from .errors import DegenerateScanError, EmptyScanError, LabelError, NoGarmentError
+from .errors import DegenerateScanError, LabelError, NoGarmentError, ScanFormatError
 from .frame import ScanTransform, check_plausible_size
 from .interior import interior_samples
 from .labels import LabelMap
-from .loading import RawScan, read_scan_file, scan_from_arrays
+from .loading import RawScan, read_scan_file, scan_from_arrays, scan_from_message
 
 _MAX_LISTED = 10
 
@@ -299,7 +299,6 @@ def load_scan(scan, units: str = "m", up: str = "y", label=None, garment_type: s
     elif isinstance(scan, (str, pathlib.Path)):
         raw = read_scan_file(scan)
     elif isinstance(scan, dict):
-        from .loading import scan_from_message
         raw = scan_from_message(scan)
         units = scan.get("units") or units
         up = scan.get("up_axis") or up
@@ -307,6 +306,6 @@ def load_scan(scan, units: str = "m", up: str = "y", label=None, garment_type: s
     elif isinstance(scan, (tuple, list)) and len(scan) in (2, 3):
         raw = scan_from_arrays(*scan)
     else:
-        raise EmptyScanError(f"scan: expected a path, RawScan, (vertices, faces[, labels]) or a "
+        raise ScanFormatError(f"scan: expected a path, RawScan, (vertices, faces[, labels]) or a "
                              f"message dict, got {type(scan).__name__}")
     return preprocess_scan(raw, units, up, label, garment_type, options, label_map)

@@ -145,6 +145,8 @@ def test_unknown_units_up_axis_and_unreadable_files(synthetic, tmp_path):
         read_scan_file(q)
     with pytest.raises(FileNotFoundError):
         read_scan_file(tmp_path / "missing.ply")
+    with pytest.raises(ScanFormatError, match="expected a path"):
+        load_scan(42)
 
 
 def test_label_given_for_an_unlabelled_scan(synthetic):

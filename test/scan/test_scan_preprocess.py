@@ -9,7 +9,7 @@ import pytest
 from scipy.spatial import cKDTree
 
 from diffavatar_core import metrics
-from diffavatar_core.scan import OPENING_NAMES, ScanOptions, load_scan, scan_from_arrays
+from diffavatar_core.scan import OPENING_NAMES, ScanOptions, load_scan
 from synthetic_scan import core_to_scan, shared_file, synthetic, synthetic_ply  # noqa: F401 (fixtures)
 
 
