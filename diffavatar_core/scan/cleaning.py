@@ -1,0 +1,105 @@
+"""Mesh cleaning for scans: duplicate-vertex merging, degenerate/duplicate triangle removal,
+connected components and dropping of small floating fragments. Pure numpy/scipy (linear or
+n log n in the mesh size; no per-element Python loops). Lengths in the units of V (m in the
+core frame); every step keeps the surviving vertices and faces in their input order."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
+
+
+def merge_duplicate_vertices(V: np.ndarray, F: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Merges vertices closer than tol (transitively), keeping the lowest-index vertex of each
+    group at its own position. V: (N, 3); F: (M, 3). Returns (V' (N', 3), F' (M, 3) remapped,
+    old_to_new (N,)), N' ≤ N, survivors in input order."""
+    n = V.shape[0]
+    pairs = cKDTree(V).query_pairs(tol, output_type="ndarray") if tol > 0 else np.zeros((0, 2), int)
+    if len(pairs) == 0:
+        return V, F, np.arange(n)
+    G = sp.coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+    _, comp = connected_components(G, directed=False)
+    rep = np.full(comp.max() + 1, n, dtype=np.int64)
+    np.minimum.at(rep, comp, np.arange(n))      # lowest index of each group
+    keep = np.zeros(n, bool)
+    keep[rep] = True
+    new_index = np.cumsum(keep) - 1
+    old_to_new = new_index[rep[comp]]
+    return V[keep], old_to_new[F], old_to_new
+
+
+def triangle_areas(V: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """(M,) triangle areas (units of V squared)."""
+    e1 = V[F[:, 1]] - V[F[:, 0]]
+    e2 = V[F[:, 2]] - V[F[:, 0]]
+    return 0.5 * np.linalg.norm(np.cross(e1, e2), axis=1)
+
+
+def degenerate_or_duplicate_faces(V: np.ndarray, F: np.ndarray, min_area: float) -> tuple[np.ndarray, int, int]:
+    """Mask (M,) of faces to drop: a repeated vertex index or area ≤ min_area (degenerate), or
+    the same vertex triple as an earlier face (duplicate). Returns (mask, #degenerate, #duplicate)."""
+    rep = (F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 0] == F[:, 2])
+    degenerate = rep | (triangle_areas(V, F) <= min_area)
+    key = np.sort(F, axis=1)
+    _, first = np.unique(key, axis=0, return_index=True)
+    dup = np.ones(len(F), bool)
+    dup[first] = False
+    dup &= ~degenerate
+    return degenerate | dup, int(degenerate.sum()), int(dup.sum())
+
+
+def face_components(F: np.ndarray, n_vertices: int) -> tuple[int, np.ndarray]:
+    """Connected components of a triangle mesh through shared vertices: (count, (M,) component
+    id of each face)."""
+    rows = np.concatenate([F[:, 0], F[:, 1]])
+    cols = np.concatenate([F[:, 1], F[:, 2]])
+    G = sp.coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(n_vertices, n_vertices))
+    n, comp = connected_components(G, directed=False)
+    return n, comp[F[:, 0]]
+
+
+@dataclass(frozen=True)
+class DroppedComponent:
+    """A connected part removed as a floating fragment (area m², centroid m, core frame)."""
+    faces: int
+    vertices: int
+    area: float
+    centroid: tuple[float, float, float]
+
+    def describe(self) -> str:
+        c = ", ".join(f"{x:.3f}" for x in self.centroid)
+        return f"{self.faces} faces / {self.vertices} vertices, {self.area * 1e4:.3g} cm² at ({c}) m"
+
+
+def small_components(V: np.ndarray, F: np.ndarray, min_fraction: float) -> tuple[np.ndarray, list[DroppedComponent]]:
+    """Faces of the connected parts whose area is below min_fraction × the largest part's area.
+    Returns (mask (M,) of faces to drop, descriptions of the dropped parts, largest first)."""
+    n, comp = face_components(F, V.shape[0])
+    area = triangle_areas(V, F)
+    comp_area = np.bincount(comp, weights=area, minlength=n)
+    has_faces = np.bincount(comp, minlength=n) > 0     # isolated vertices are no parts
+    small = has_faces & (comp_area < min_fraction * comp_area.max())
+    drop = small[comp]
+    dropped = []
+    for c in np.flatnonzero(small)[np.argsort(-comp_area[small])]:
+        fc = comp == c
+        vids = np.unique(F[fc])
+        w = area[fc]
+        centers = V[F[fc]].mean(axis=1)
+        centroid = (w @ centers) / w.sum() if w.sum() > 0 else centers.mean(axis=0)  # fc non-empty
+        dropped.append(DroppedComponent(int(fc.sum()), len(vids), float(comp_area[c]),
+                                        tuple(float(x) for x in centroid)))
+    return drop, dropped
+
+
+def compact(V: np.ndarray, F: np.ndarray, face_keep: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The sub-mesh of the kept faces with unreferenced vertices removed (order kept).
+    Returns (V', F', kept_vertex_indices (N',) into V)."""
+    Fk = F[face_keep]
+    used = np.zeros(V.shape[0], bool)
+    used[Fk.ravel()] = True
+    new_index = np.cumsum(used) - 1
+    return V[used], new_index[Fk], np.flatnonzero(used)

@@ -1,0 +1,157 @@
+"""Reading segmented scans: PLY (ascii or binary, per-vertex `label` property), OBJ (and any
+other triangle format trimesh reads, without labels), plain arrays, and the flat arrays of a
+ROS SegmentedScan message. Everything is validated here, in the scan's own units and frame;
+conversion to the core frame happens in preprocessing."""
+from __future__ import annotations
+
+import pathlib
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import (EmptyScanError, FaceIndexError, LabelError, NonFiniteError,
+                     ScanFormatError)
+
+#: PLY vertex properties read as the per-vertex label, first match wins.
+LABEL_PROPERTIES = ("label", "labels")
+
+
+@dataclass(frozen=True)
+class RawScan:
+    """A validated scan in its own frame and units.
+
+    vertices: (V, 3) float64 (scan units); faces: (F, 3) int64 indices into vertices;
+    labels: (V,) int64 per-vertex class values, or None for a garment-only scan;
+    label_names: the scan's own class names (label value k → label_names[k]) or None to use
+    config/labels.yaml; source: where it came from (file path or 'arrays'), for messages.
+    """
+    vertices: np.ndarray
+    faces: np.ndarray
+    labels: np.ndarray | None = None
+    label_names: tuple[str, ...] | None = None
+    source: str = "arrays"
+
+
+def _as_rows(name: str, a, dtype_kind: str) -> np.ndarray:
+    try:
+        arr = np.asarray(a)
+    except (TypeError, ValueError) as exc:
+        raise ScanFormatError(f"{name}: not an array ({exc})") from None
+    if arr.ndim == 1 and arr.size % 3 == 0:  # flat interleaved (ROS message layout)
+        arr = arr.reshape(-1, 3)
+    if arr.ndim != 2 or arr.shape[1] != 3:
+        err = FaceIndexError if dtype_kind == "faces" else ScanFormatError
+        raise err(f"{name}: expected shape (N, 3) or flat (3N,), got {arr.shape}")
+    return arr
+
+
+def scan_from_arrays(vertices, faces, labels=None, label_names=None, source: str = "arrays") -> RawScan:
+    """A RawScan from arrays: vertices (V, 3) or flat (3V,) in scan units, faces (F, 3) or flat
+    (3F,) 0-based, labels (V,) integers or None/empty (garment-only), label_names optional.
+    Raises EmptyScanError, NonFiniteError, FaceIndexError or LabelError naming the problem."""
+    V = _as_rows("vertices", vertices, "vertices")
+    F = _as_rows("faces", faces, "faces")
+    if V.shape[0] == 0:
+        raise EmptyScanError(f"{source}: the scan has no vertices")
+    if F.shape[0] == 0:
+        raise EmptyScanError(f"{source}: the scan has no triangles ({V.shape[0]} vertices)")
+    if not (np.issubdtype(V.dtype, np.floating) or np.issubdtype(V.dtype, np.integer)):
+        raise ScanFormatError(f"{source}: vertices must be numeric, got dtype {V.dtype}")
+    V = np.ascontiguousarray(V, dtype=np.float64)
+    bad = ~np.isfinite(V).all(axis=1)
+    if bad.any():
+        raise NonFiniteError(f"{source}: {int(bad.sum())} vertex/vertices have NaN or Inf "
+                             f"coordinates (first: vertex {int(np.flatnonzero(bad)[0])})")
+    if not np.issubdtype(F.dtype, np.integer):
+        if not np.issubdtype(F.dtype, np.floating) or not np.all(np.isfinite(F)) or np.any(np.mod(F, 1) != 0):
+            raise FaceIndexError(f"{source}: face indices must be integers, got dtype {F.dtype}")
+    F = np.ascontiguousarray(F, dtype=np.int64)
+    out = (F < 0) | (F >= V.shape[0])
+    if out.any():
+        row = int(np.flatnonzero(out.any(axis=1))[0])
+        raise FaceIndexError(f"{source}: {int(out.any(axis=1).sum())} face(s) index vertices outside "
+                             f"[0, {V.shape[0]}) (first: face {row} = {F[row].tolist()})")
+    L = None
+    if labels is not None:
+        La = np.asarray(labels)
+        if La.size > 0:
+            La = La.reshape(-1) if La.ndim == 2 and 1 in La.shape else La
+            if La.ndim != 1 or La.shape[0] != V.shape[0]:
+                raise LabelError(f"{source}: labels: expected one per vertex, shape ({V.shape[0]},), "
+                                 f"got {La.shape}")
+            if not np.issubdtype(La.dtype, np.integer):
+                if not np.issubdtype(La.dtype, np.floating) or not np.all(np.isfinite(La)) \
+                        or np.any(np.mod(La, 1) != 0):
+                    raise LabelError(f"{source}: labels must be integers, got dtype {La.dtype}")
+            L = np.ascontiguousarray(La, dtype=np.int64)
+    names = tuple(str(n) for n in label_names) if label_names else None
+    return RawScan(V, F, L, names, source)
+
+
+def _ply_labels(mesh) -> np.ndarray | None:
+    raw = (mesh.metadata or {}).get("_ply_raw", {}).get("vertex", {}).get("data")
+    if raw is None:
+        return None
+    for prop in LABEL_PROPERTIES:
+        if prop in getattr(raw, "keys", lambda: ())():
+            return np.asarray(raw[prop]).reshape(-1)
+        if getattr(raw, "dtype", None) is not None and raw.dtype.names and prop in raw.dtype.names:
+            return np.asarray(raw[prop]).reshape(-1)
+    return None
+
+
+def read_obj(path: pathlib.Path) -> tuple[np.ndarray, np.ndarray]:
+    """(V (N, 3), F (M, 3)) of a Wavefront OBJ as stored: `v` lines in order, `f` polygons
+    (v, v/vt, v//vn, v/vt/vn; negative = relative) fan-triangulated, everything else ignored.
+    Indices are checked by the caller (an out-of-range index is reported, not fixed)."""
+    verts, faces = [], []
+    with open(path, encoding="utf-8", errors="replace") as fh:
+        for ln, line in enumerate(fh, 1):
+            if line.startswith("v "):
+                parts = line.split()
+                if len(parts) < 4:
+                    raise ScanFormatError(f"{path}:{ln}: a vertex needs 3 coordinates: {line.strip()!r}")
+                try:
+                    verts.append((float(parts[1]), float(parts[2]), float(parts[3])))
+                except ValueError:
+                    raise ScanFormatError(f"{path}:{ln}: not a number in {line.strip()!r}") from None
+            elif line.startswith("f "):
+                try:
+                    idx = [int(tok.split("/")[0]) for tok in line.split()[1:]]
+                except ValueError:
+                    raise ScanFormatError(f"{path}:{ln}: bad face {line.strip()!r}") from None
+                if len(idx) < 3:
+                    raise ScanFormatError(f"{path}:{ln}: a face needs 3 or more vertices: {line.strip()!r}")
+                n = len(verts)
+                idx = [i - 1 if i > 0 else n + i for i in idx]
+                faces.extend((idx[0], idx[k], idx[k + 1]) for k in range(1, len(idx) - 1))
+    return (np.asarray(verts, np.float64).reshape(-1, 3), np.asarray(faces, np.int64).reshape(-1, 3))
+
+
+def read_scan_file(path: str | pathlib.Path) -> RawScan:
+    """A RawScan from a mesh file. PLY: the per-vertex `label` property (if present) becomes the
+    labels; OBJ (own reader: vertices exactly as stored, seams split in the file are merged
+    later, in preprocessing) and other formats trimesh reads: garment-only (labels None)."""
+    import trimesh
+    p = pathlib.Path(path)
+    if not p.exists():
+        raise FileNotFoundError(f"{p}: no such file")
+    if p.suffix.lower() == ".obj":
+        V, F = read_obj(p)
+        return scan_from_arrays(V, F, None, None, source=str(p))
+    try:
+        m = trimesh.load(str(p), force="mesh", process=False)
+    except Exception as exc:  # trimesh raises many types for unreadable files
+        raise ScanFormatError(f"{p}: cannot be read as a triangle mesh ({type(exc).__name__}: {exc})") from None
+    V = np.asarray(getattr(m, "vertices", np.zeros((0, 3))))
+    F = np.asarray(getattr(m, "faces", np.zeros((0, 3), np.int64)))
+    labels = _ply_labels(m) if p.suffix.lower() == ".ply" else None
+    return scan_from_arrays(V, F, labels, None, source=str(p))
+
+
+def scan_from_message(arrays: dict) -> RawScan:
+    """A RawScan from diffavatar_ros.convert.msg_to_arrays(msg): flat float32 vertices, flat
+    uint32 faces, uint8 labels (empty: garment-only) and label_names (empty: the label map)."""
+    return scan_from_arrays(arrays["vertices"], arrays["faces"], arrays.get("labels"),
+                            arrays.get("label_names") or None,
+                            source=f"message {arrays.get('job_id') or ''}".strip())

@@ -1,0 +1,311 @@
+"""Segmented scan → ScanData: the scan in the core frame, cleaned, with its garment region,
+named boundary loops (openings), holes and interior samples (paper §4.2: the boundary and
+interior targets of the loss)."""
+from __future__ import annotations
+
+import json
+import pathlib
+from dataclasses import dataclass, field, fields
+
+import numpy as np
+
+from ..config import load_config
+from . import boundary as bnd
+from . import cleaning
+from .errors import DegenerateScanError, LabelError, NoGarmentError, ScanFormatError
+from .frame import ScanTransform, check_plausible_size
+from .interior import interior_samples
+from .labels import LabelMap
+from .loading import RawScan, read_scan_file, scan_from_arrays, scan_from_message
+
+_MAX_LISTED = 10
+
+
+@dataclass(frozen=True)
+class ScanOptions:
+    """Preprocessing parameters (defaults: the `scan:` section of config/diffavatar.yaml).
+    Lengths in m (core frame), areas relative."""
+    min_height: float = 0.2
+    max_height: float = 2.5
+    merge_tolerance: float = 1e-6
+    min_component_fraction: float = 0.01
+    min_opening_perimeter: float = 0.10
+    interior_margin: float = 0.01
+    interior_samples: int = 5000
+    seed: int = 0
+
+    def __post_init__(self):
+        def bad(name, why):
+            raise ValueError(f"scan options: {name} {why}, got {getattr(self, name)!r}")
+        for name in ("min_height", "max_height", "merge_tolerance", "min_component_fraction",
+                     "min_opening_perimeter", "interior_margin"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v) or v < 0:
+                bad(name, "must be a non-negative number")
+        if not 0 < self.min_height < self.max_height:
+            raise ValueError(f"scan options: need 0 < min_height < max_height, got min_height="
+                             f"{self.min_height!r}, max_height={self.max_height!r}")
+        if self.min_component_fraction >= 1:
+            bad("min_component_fraction", "must be below 1")
+        for name in ("interior_samples", "seed"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 0:
+                bad(name, "must be a non-negative integer")
+
+    @classmethod
+    def from_config(cls, cfg: dict | None = None) -> "ScanOptions":
+        """From a loaded configuration (load_config()), default: the project's."""
+        section = (cfg if cfg is not None else load_config()).get("scan", {})
+        known = {f.name for f in fields(cls)}
+        unknown = set(section) - known
+        if unknown:
+            raise ValueError(f"config: unknown key(s) scan.{', scan.'.join(sorted(unknown))}")
+        return cls(**section)
+
+
+@dataclass
+class ScanData:
+    """A preprocessed scan, everything in the core frame (m, Y up, faces +Z, +X = left).
+
+    vertices (N, 3) m and faces (M, 3) int64: the cleaned scan (all kept parts, body included);
+    labels (N,) int64 or None (garment-only); label_names {value: name};
+    garment_face_mask (M,) / garment_vertex_mask (N,) bool: the garment region (faces whose
+    three vertices carry the garment label, small islands removed) and the vertices it uses;
+    garment_label (int or None), garment_class ('upper', 'dress', 'skirt', 'pants'),
+    garment_type (as given, or None);
+    boundaries {opening name: (K, 3) ordered closed loop, m} with names among hem, neckline,
+    sleeve_left, sleeve_right, waist, leg_left, leg_right; boundary_indices: the same loops as
+    vertex indices (K,); holes: loops that are no opening ((K, 3), m);
+    interior_points (S, 3) m: area-uniform garment samples ≥ interior_margin from any loop;
+    transform: p_core = scale · R · p_scan (to_scan() maps results back); warnings: what
+    cleaning dropped or could not find; height_m: Y extent of the cleaned scan.
+    """
+    vertices: np.ndarray
+    faces: np.ndarray
+    labels: np.ndarray | None
+    label_names: dict[int, str]
+    garment_face_mask: np.ndarray
+    garment_vertex_mask: np.ndarray
+    garment_label: int | None
+    garment_class: str
+    garment_type: str | None
+    boundaries: dict[str, np.ndarray]
+    boundary_indices: dict[str, np.ndarray]
+    holes: list[np.ndarray]
+    interior_points: np.ndarray
+    transform: ScanTransform
+    height_m: float
+    source: str = "arrays"
+    warnings: list[str] = field(default_factory=list)
+
+    def garment_mesh(self) -> tuple[np.ndarray, np.ndarray]:
+        """The garment region alone: (V (n, 3) m, F (m, 3) int64), vertex order kept."""
+        V, F, _ = cleaning.compact(self.vertices, self.faces, self.garment_face_mask)
+        return V, F
+
+    def label_vertex_mask(self, label) -> np.ndarray:
+        """(N,) bool: the vertices carrying a label (class name or value), e.g. 'body' for the
+        body fitting; all False for a garment-only scan."""
+        if self.labels is None:
+            return np.zeros(len(self.vertices), bool)
+        return self.labels == LabelMap(self.label_names, {}).value_of(label)
+
+    def to_dict(self, points: bool = False) -> dict:
+        """JSON-able summary (lengths in m); points=True includes the loop points."""
+        def loop(P):
+            g = bnd.LoopGeometry.of(P)
+            d = {"points": len(P), "perimeter_m": g.perimeter, "centroid_m": g.centroid.tolist(),
+                 "normal": g.normal.tolist()}
+            if points:
+                d["xyz_m"] = P.tolist()
+            return d
+        Vg, Fg = self.garment_mesh()
+        lo, hi = self.vertices.min(axis=0), self.vertices.max(axis=0)
+        present = {}
+        if self.labels is not None:
+            vals, counts = np.unique(self.labels, return_counts=True)
+            present = {self.label_names.get(int(v), f"label {int(v)}"): int(c) for v, c in zip(vals, counts)}
+        return {
+            "source": self.source,
+            "transform": self.transform.to_dict(),
+            "vertices": int(len(self.vertices)),
+            "faces": int(len(self.faces)),
+            "height_m": self.height_m,
+            "bbox_m": [lo.tolist(), hi.tolist()],
+            "labels_present": present,
+            "garment": {"label": self.garment_label,
+                        "label_name": (self.label_names.get(self.garment_label)
+                                       if self.garment_label is not None else None),
+                        "class": self.garment_class, "type": self.garment_type,
+                        "vertices": int(len(Vg)), "faces": int(len(Fg)),
+                        "area_m2": float(cleaning.triangle_areas(Vg, Fg).sum())},
+            "boundaries": {k: loop(P) for k, P in self.boundaries.items()},
+            "holes": [loop(P) for P in self.holes],
+            "interior_samples": int(len(self.interior_points)),
+            "warnings": list(self.warnings),
+        }
+
+    def to_json(self, points: bool = False) -> str:
+        return json.dumps(self.to_dict(points), indent=2)
+
+
+def _choose_garment(raw_labels: np.ndarray, lmap: LabelMap, label, garment_type) -> tuple[int, str]:
+    present = np.unique(raw_labels)
+    listing = ", ".join(f"{lmap.name_of(v)} ({int(v)}): {int(np.count_nonzero(raw_labels == v))}"
+                        for v in present)
+    type_class = lmap.garment_class(garment_type) if garment_type else None
+    if garment_type and type_class is None:
+        raise LabelError(f"garment type '{garment_type}' is not known (classes: "
+                         f"{', '.join(lmap.garment_openings)}; types: {', '.join(lmap.garment_types)})")
+    if label is not None:
+        value = lmap.value_of(label)
+    else:
+        garments = [int(v) for v in present if lmap.garment_class(lmap.name_of(v)) is not None]
+        if type_class is not None:
+            garments = [v for v in garments if lmap.garment_class(lmap.name_of(v)) == type_class]
+        if not garments:
+            raise NoGarmentError("no garment label present in the scan"
+                                 + (f" for garment type '{garment_type}'" if garment_type else "")
+                                 + f" (vertices per label: {listing})")
+        if len(garments) > 1:
+            raise NoGarmentError(f"several garments in the scan ({', '.join(lmap.name_of(v) for v in garments)}): "
+                                 f"choose one with label= / --label")
+        value = garments[0]
+    cls = type_class or lmap.garment_class(lmap.name_of(value))
+    if cls is None:
+        raise LabelError(f"label '{lmap.name_of(value)}' ({value}) is not a garment class "
+                         f"({', '.join(lmap.garment_openings)}): give the garment type")
+    if not np.any(raw_labels == value):
+        raise NoGarmentError(f"no vertices with label '{lmap.name_of(value)}' ({value}) "
+                             f"(vertices per label: {listing})")
+    return value, cls
+
+
+def preprocess_scan(raw: RawScan, units: str = "m", up: str = "y", label=None,
+                    garment_type: str | None = None, options: ScanOptions | None = None,
+                    label_map: LabelMap | None = None) -> ScanData:
+    """Converts a RawScan (its own units/up axis) into ScanData (core frame, m).
+
+    label: garment label (class name or value); default: the only garment label present (or
+    the one matching garment_type). garment_type: e.g. 'tshirt' or a class ('upper'); required
+    for a garment-only scan (no labels). Raises a ScanError subclass naming the problem.
+    """
+    opt = options or ScanOptions.from_config()
+    lmap = label_map or LabelMap.load()
+    if raw.label_names:
+        lmap = lmap.with_names(raw.label_names)
+    tf = ScanTransform.from_options(units, up)
+    warnings: list[str] = []
+
+    # 1. core frame, duplicate vertices (split seams, OBJ UV splits)
+    V0 = tf.to_core(raw.vertices)
+    V, F, old_to_new = cleaning.merge_duplicate_vertices(V0, raw.faces, opt.merge_tolerance)
+    labels = None
+    if raw.labels is not None:
+        kept = np.zeros(len(V0), bool)
+        kept[np.unique(old_to_new, return_index=True)[1]] = True
+        labels = raw.labels[kept]
+        conflict = np.count_nonzero(labels[old_to_new] != raw.labels)
+        if conflict:
+            warnings.append(f"{conflict} merged duplicate vertices had a different label than the "
+                            f"vertex they were merged into (kept the first's)")
+    if len(V) < len(V0):
+        warnings.append(f"merged {len(V0) - len(V)} duplicate vertices (closer than {opt.merge_tolerance} m)")
+
+    # 2. degenerate and duplicate triangles
+    bad, n_deg, n_dup = cleaning.degenerate_or_duplicate_faces(V, F, opt.merge_tolerance ** 2)
+    if bad.all():
+        raise DegenerateScanError(f"{raw.source}: all {len(F)} triangles are degenerate (zero area "
+                                  f"or a repeated vertex) or duplicates")
+    if n_deg or n_dup:
+        warnings.append(f"removed {n_deg} degenerate and {n_dup} duplicate triangles")
+    F = F[~bad]
+
+    # 3. floating fragments
+    drop, dropped = cleaning.small_components(V, F, opt.min_component_fraction)
+    if dropped:
+        listed = "; ".join(d.describe() for d in dropped[:_MAX_LISTED])
+        more = f"; and {len(dropped) - _MAX_LISTED} more" if len(dropped) > _MAX_LISTED else ""
+        warnings.append(f"dropped {len(dropped)} floating fragment(s) smaller than "
+                        f"{opt.min_component_fraction:g} of the largest part: {listed}{more}")
+    V, F, kept_v = cleaning.compact(V, F, ~drop)
+    if labels is not None:
+        labels = labels[kept_v]
+    height = check_plausible_size(V, tf, opt.min_height, opt.max_height)
+
+    # 4. garment region
+    if labels is None:
+        if label is not None:
+            raise LabelError(f"{raw.source}: the scan has no per-vertex labels, so label={label!r} "
+                             f"cannot select a garment (give the garment type instead)")
+        if not garment_type:
+            raise NoGarmentError(f"{raw.source}: a garment-only scan (no per-vertex labels) needs "
+                                 f"the garment type (e.g. garment_type='tshirt' / --garment)")
+        cls = lmap.garment_class(garment_type)
+        if cls is None:
+            raise LabelError(f"garment type '{garment_type}' is not known (classes: "
+                             f"{', '.join(lmap.garment_openings)}; types: {', '.join(lmap.garment_types)})")
+        value = None
+        gface = np.ones(len(F), bool)
+    else:
+        value, cls = _choose_garment(labels, lmap, label, garment_type)
+        gface = (labels[F] == value).all(axis=1)
+        if not gface.any():
+            raise NoGarmentError(f"{raw.source}: {int(np.count_nonzero(labels == value))} vertices carry "
+                                 f"label '{lmap.name_of(value)}' but no triangle has all three")
+    gidx = np.flatnonzero(gface)
+    gdrop, gdropped = cleaning.small_components(V, F[gidx], opt.min_component_fraction)
+    if gdropped:
+        listed = "; ".join(d.describe() for d in gdropped[:_MAX_LISTED])
+        warnings.append(f"dropped {len(gdropped)} small island(s) of the garment region: {listed}")
+        gface[gidx[gdrop]] = False
+    gvert = np.zeros(len(V), bool)
+    gvert[F[gface].ravel()] = True
+
+    # 5. boundary loops → openings and holes
+    loops = [bnd.start_at_front(lp, V) for lp in bnd.boundary_loops(F[gface], V)]
+    pts = [V[lp] for lp in loops]
+    openings = lmap.garment_openings[cls]
+    found, hole_ids = bnd.classify_loops(pts, openings, V[gvert], opt.min_opening_perimeter)
+    missing = [n for n in openings if n not in found]
+    if missing:
+        warnings.append(f"openings not found for a '{cls}' garment: {', '.join(missing)} "
+                        f"({len(loops)} boundary loops, {len(hole_ids)} unmatched)")
+    boundaries = {n: pts[found[n]] for n in openings if n in found}
+    boundary_idx = {n: loops[found[n]] for n in openings if n in found}
+
+    # 6. interior samples
+    interior = np.zeros((0, 3))
+    if opt.interior_samples > 0:
+        Vg, Fg, _ = cleaning.compact(V, F, gface)
+        interior = interior_samples(Vg, Fg, pts, opt.interior_samples, opt.interior_margin, opt.seed)
+        if len(interior) < opt.interior_samples:
+            warnings.append(f"only {len(interior)} of {opt.interior_samples} interior samples lie "
+                            f"{opt.interior_margin} m away from the boundary")
+
+    return ScanData(V, F, labels, dict(lmap.classes), gface, gvert, value, cls,
+                    garment_type or None, boundaries, boundary_idx, [pts[i] for i in hole_ids],
+                    interior, tf, height, raw.source, warnings)
+
+
+def load_scan(scan, units: str = "m", up: str = "y", label=None, garment_type: str | None = None,
+              options: ScanOptions | None = None, label_map: LabelMap | None = None) -> ScanData:
+    """One call from input to ScanData. scan: a file path (PLY with per-vertex `label`, OBJ, ...),
+    a RawScan, a (vertices, faces[, labels]) tuple, or the dict of
+    diffavatar_ros.convert.msg_to_arrays (its units/up_axis/garment_type fill in the
+    arguments left at their defaults)."""
+    if isinstance(scan, RawScan):
+        raw = scan
+    elif isinstance(scan, (str, pathlib.Path)):
+        raw = read_scan_file(scan)
+    elif isinstance(scan, dict):
+        raw = scan_from_message(scan)
+        units = scan.get("units") or units
+        up = scan.get("up_axis") or up
+        garment_type = garment_type or scan.get("garment_type") or None
+    elif isinstance(scan, (tuple, list)) and len(scan) in (2, 3):
+        raw = scan_from_arrays(*scan)
+    else:
+        raise ScanFormatError(f"scan: expected a path, RawScan, (vertices, faces[, labels]) or a "
+                             f"message dict, got {type(scan).__name__}")
+    return preprocess_scan(raw, units, up, label, garment_type, options, label_map)
