@@ -1,0 +1,22 @@
+"""`diffavatar drape --garment NAME --out DIR`: sew and drape a garment on the default body."""
+import json
+import pathlib
+
+
+def register(sub) -> None:
+    from ..sim.drape_job import GARMENTS
+    p = sub.add_parser("drape", help="sew and drape a garment on the default body (draped.obj, body.obj, drape.json)")
+    p.add_argument("--garment", default="skirt", choices=GARMENTS)
+    p.add_argument("--out", required=True, help="output directory")
+    p.add_argument("--max-steps", type=int, default=1500, help="XPBD step budget")
+    p.add_argument("--iterations", type=int, default=100, help="constraint sweeps per step")
+    p.add_argument("--no-refine", action="store_true", help="skip the Newton equilibrium refinement")
+    p.set_defaults(func=_run)
+
+
+def _run(args) -> int:
+    from ..sim import drape_job
+    info = drape_job.run(pathlib.Path(args.out), args.garment, args.max_steps, args.iterations,
+                         refine=not args.no_refine)
+    print(json.dumps(info, indent=2))
+    return 0 if not info["diverged"] else 1
