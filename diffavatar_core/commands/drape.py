@@ -10,6 +10,7 @@ def register(sub) -> None:
     p.add_argument("--out", required=True, help="output directory")
     p.add_argument("--max-steps", type=int, default=1500, help="XPBD step budget")
     p.add_argument("--iterations", type=int, default=100, help="constraint sweeps per step")
+    p.add_argument("--edge", type=float, default=0.02, help="target edge length of the garment mesh (m)")
     p.add_argument("--no-refine", action="store_true", help="skip the Newton equilibrium refinement")
     p.set_defaults(func=_run)
 
@@ -17,6 +18,6 @@ def register(sub) -> None:
 def _run(args) -> int:
     from ..sim import drape_job
     info = drape_job.run(pathlib.Path(args.out), args.garment, args.max_steps, args.iterations,
-                         refine=not args.no_refine)
+                         refine=not args.no_refine, edge=args.edge)
     print(json.dumps(info, indent=2))
     return 0 if not info["diverged"] else 1

@@ -16,12 +16,12 @@ from .scenes import mannequin, two_panel_skirt
 GARMENTS = ("skirt",)
 
 
-def build(garment: str = "skirt", material: ClothMaterial | None = None):
+def build(garment: str = "skirt", material: ClothMaterial | None = None, edge: float = 0.02):
     """(Cloth, garment dict, body (V, F)) for a project-generated garment on the mannequin."""
     if garment not in GARMENTS:
         raise ValueError(f"garment: unknown {garment!r}; available: {', '.join(GARMENTS)}")
     body = mannequin()
-    g = two_panel_skirt()
+    g = two_panel_skirt(edge=edge)
     mat = material or ClothMaterial()
     cloth = Cloth(g["rest"], g["faces"], g["x0"], seams=g["seams"], groups=g["groups"],
                   materials=[mat] * (int(g["groups"].max()) + 1), body=body)
@@ -29,10 +29,17 @@ def build(garment: str = "skirt", material: ClothMaterial | None = None):
 
 
 def run(out: pathlib.Path, garment: str = "skirt", max_steps: int = 1500, iterations: int = 100,
-        refine: bool = True, progress=None, cancel=None) -> dict:
+        refine: bool = True, edge: float = 0.02, progress=None, cancel=None) -> dict:
+    """Drapes and writes the files; returns the drape.json content."""
+    return execute(out, garment, max_steps, iterations, refine, edge, progress, cancel)[0]
+
+
+def execute(out: pathlib.Path, garment: str = "skirt", max_steps: int = 1500, iterations: int = 100,
+            refine: bool = True, edge: float = 0.02, progress=None, cancel=None):
+    """As run, also returning the draped Cloth, the garment dict and the body: (info, cloth, g, body)."""
     t0 = time.perf_counter()
     out.mkdir(parents=True, exist_ok=True)
-    cloth, g, (bv, bf) = build(garment)
+    cloth, g, (bv, bf) = build(garment, edge=edge)
     r = cloth.drape(max_steps=max_steps, iterations=iterations, refine=refine, progress=progress,
                     cancel=cancel, raise_on_divergence=False)
     x = np.array(cloth.x)
@@ -47,4 +54,4 @@ def run(out: pathlib.Path, garment: str = "skirt", max_steps: int = 1500, iterat
         "max_seam_gap_mm": 1e3 * gap, "wall_s": time.perf_counter() - t0, "message": r.message,
     }
     (out / "drape.json").write_text(json.dumps(info, indent=2))
-    return info
+    return info, cloth, g, (bv, bf)

@@ -193,3 +193,18 @@ def test_bad_inputs_are_named():
         Cloth(rest, F, bad)
     with pytest.raises(ValueError, match="seams"):
         Cloth(rest, F, x0, seams=[[0, 99]])
+
+
+def test_skirt_sews_and_drapes_on_the_body_like_mannequin():
+    from diffavatar_core.sim.scenes import mannequin, two_panel_skirt
+    V, Fb = mannequin(48, 40)
+    sk = two_panel_skirt(edge=0.04)
+    cloth = Cloth(sk["rest"], sk["faces"], sk["x0"], seams=sk["seams"], groups=sk["groups"],
+                  materials=[ClothMaterial()] * 2, body=(V, Fb))
+    r = cloth.drape(max_steps=1500)
+    assert r.converged, r
+    assert r.max_penetration <= 0.1 * 0.004
+    x = cloth.x
+    assert np.linalg.norm(x[sk["seams"][:, 0]] - x[sk["seams"][:, 1]], axis=1).max() < 1e-3
+    waist = x[sk["boundaries"]["waist"]]
+    assert 0.9 < waist[:, 1].mean() < 1.1  # held up by the hips, not fallen off

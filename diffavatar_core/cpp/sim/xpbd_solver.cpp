@@ -189,7 +189,8 @@ int XpbdSolver::refine(ClothState& s, const SimParams& p, const DrapeParams& d, 
   for (int v : dof) n = std::max(n, v + 3);
   int it = 0;
   double res = INFINITY;
-  double reg = 1e-9;
+  // Levenberg–Marquardt damping λ·M (λ in 1/s², M the lumped masses): 0 unless a step fails.
+  double reg = 0.0;
   for (; it < d.refine_iterations; ++it) {
     rc.check("equilibrium refinement");
     // The contact set is detected once and then held fixed, so every line search minimises
@@ -203,20 +204,30 @@ int XpbdSolver::refine(ClothState& s, const SimParams& p, const DrapeParams& d, 
     VecXd g(n);
     for (int i = 0; i < model_.num_vertices; ++i)
       if (dof[i] >= 0) g.segment<3>(dof[i]) = G.row(i).transpose();
-    Eigen::SparseMatrix<double> H = energy_hessian(ctx, s.x, dof, true);
-    double diag_mean = H.diagonal().cwiseAbs().mean();
+    // Far from equilibrium the element Hessians are projected to be positive semi-definite;
+    // close to it the exact Hessian is used (quadratic convergence; compressed triangles make
+    // the projected one differ) as long as it yields a descent direction.
+    const bool exact = res < 1.0 && reg == 0.0;
+    Eigen::SparseMatrix<double> H = energy_hessian(ctx, s.x, dof, !exact);
     VecXd step;
     for (int attempt = 0; attempt < 8; ++attempt) {
       Eigen::SparseMatrix<double> Hr = H;
-      for (int k = 0; k < n; ++k) Hr.coeffRef(k, k) += reg * diag_mean;
+      if (reg > 0)
+        for (int i = 0; i < model_.num_vertices; ++i)
+          if (dof[i] >= 0)
+            for (int k = 0; k < 3; ++k) Hr.coeffRef(dof[i] + k, dof[i] + k) += reg * model_.mass[i];
       Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt(Hr);
       if (ldlt.info() == Eigen::Success) {
         step = ldlt.solve(-g);
         if (step.allFinite()) break;
       }
-      reg *= 100.0;
+      reg = std::max(1e-2, reg * 10.0);
     }
     if (step.size() != n) break;
+    if (exact && !(g.dot(step) < 0.0)) {
+      reg = 1e-2;  // not a descent direction: fall back to the projected Hessian
+      continue;
+    }
     // Backtracking line search on E (Armijo) with the contact set held fixed.
     double E0 = total_energy(ctx, s.x), slope = g.dot(step), a = 1.0;
     RowMatX3d xt = s.x;
@@ -239,12 +250,12 @@ int XpbdSolver::refine(ClothState& s, const SimParams& p, const DrapeParams& d, 
       a *= 0.5;
     }
     if (!ok) {
-      reg = std::max(reg * 100.0, 1e-6);
-      if (reg > 1e3) break;
+      reg = std::max(reg * 10.0, 1e-2);
+      if (reg > 1e8) break;
       continue;
     }
     s.x = xt;
-    reg = std::max(reg * 0.1, 1e-12);
+    reg = reg * 0.1 < 1e-6 ? 0.0 : reg * 0.1;
   }
   res = residual(s.x, p.gravity);
   if (res_out) *res_out = res;
