@@ -97,6 +97,13 @@ class JobQueue:
             self._finish(job)
         return job
 
+    def reject(self, error: JobError, job_id: str = "", payload: Any = None) -> Job:
+        """A job refused before queueing (e.g. invalid input): finished at once as REJECTED with
+        `error`, through on_finished like every other job; it never takes a queue slot."""
+        job = Job(job_id or uuid.uuid4().hex[:12], payload, state=JobState.REJECTED, error=error)
+        self._finish(job)
+        return job
+
     def cancel(self, job_id: str) -> bool:
         """Cancels a queued or running job; False if no such job is queued or running."""
         with self._cv:
