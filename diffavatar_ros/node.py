@@ -127,7 +127,11 @@ class RunControl:
 
 def default_runner(scan, options, run_control):
     """The recovery pipeline (imported on first use: the node starts without it)."""
-    from diffavatar_core.pipeline import recover
+    try:
+        from diffavatar_core.pipeline import recover
+    except ImportError as exc:
+        raise JobError("INTERNAL", f"the recovery pipeline diffavatar_core.pipeline.recover is not "
+                                   f"available in this installation ({exc})") from None
     return recover(scan, options, run_control)
 
 
@@ -260,10 +264,9 @@ class DiffAvatarNode(Node):
         goal_handle.execute()
 
     def _on_goal_cancel(self, goal_handle) -> CancelResponse:
-        with self._lock:
-            job = self._goal_jobs.get(bytes(goal_handle.goal_id.uuid))
-        if job is not None:
-            self._queue.cancel(job.job_id)
+        """Accepts; the goal's coroutine, woken once the goal is CANCELING, cancels its job
+        (so a cancelled goal always ends CANCELED, never ABORTED by a race)."""
+        self._wake.trigger()
         return CancelResponse.ACCEPT
 
     async def _execute(self, goal_handle):
@@ -271,11 +274,12 @@ class DiffAvatarNode(Node):
         key = bytes(goal_handle.goal_id.uuid)
         with self._lock:
             job = self._goal_jobs[key]
-        if goal_handle.is_cancel_requested:  # a cancel that raced the start
-            self._queue.cancel(job.job_id)
         sent = None
         try:
             while not job.done.is_set():
+                if goal_handle.is_cancel_requested and not job.cancel.cancelled:
+                    self._queue.cancel(job.job_id)
+                    continue
                 with self._lock:
                     fb = self._latest_progress.get(job.job_id)
                 if fb is not None and fb is not sent:
@@ -301,7 +305,10 @@ class DiffAvatarNode(Node):
         def report(stage, iteration, max_iterations, loss, terms):
             self._publish_progress(job, stage, iteration, max_iterations, loss, terms, t0)
 
-        return self._runner(job.payload["scan"], options, RunControl(job.cancel, report))
+        try:
+            return self._runner(job.payload["scan"], options, RunControl(job.cancel, report))
+        except scan_validation.ScanError as err:  # input problems found while recovering
+            raise JobError(err.code, str(err)) from None
 
     def _publish_progress(self, job, stage, iteration, max_iterations, loss, terms, t0=None):
         elapsed = time.monotonic() - (t0 if t0 is not None else job.submitted)

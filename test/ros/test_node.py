@@ -221,7 +221,12 @@ def test_action_cancel_and_responsiveness_during_a_job(setup_service):
     svc, cli = setup_service(runner)
     assert cli.action.wait_for_server(timeout_sec=10)
     gh = _wait(cli.action.send_goal_async(OptimizeAvatar.Goal(scan=_msg("job-long", iterations=1000))))
+    queued = _wait(cli.action.send_goal_async(OptimizeAvatar.Goal(scan=_msg("job-queued", iterations=2))))
     assert runner.started.wait(10)
+    assert len(_wait(queued.cancel_goal_async(), 5).goals_canceling) == 1  # cancelled while waiting
+    res = _wait(queued.get_result_async(), 10)
+    assert res.status == GoalStatus.STATUS_CANCELED
+    assert res.result.assets.error_code == AvatarAssets.ERROR_CANCELLED and "before it started" in res.result.assets.error_msg
     time.sleep(0.3)
     params = cli.node.create_client(GetParameters, f"{NS}/get_parameters")
     assert params.wait_for_service(timeout_sec=5)
@@ -456,3 +461,41 @@ def test_200k_vertex_scan_from_another_process_arrives_intact(ros_domain, ros_co
         assert got.garment_type == "dress" and got.garment_mask.all()
     finally:
         svc.close()
+
+
+def test_entry_point_runs_the_node_in_its_own_process(ros_domain, ros_context, tmp_path):
+    """`python -m diffavatar_ros --ros-args --params-file F` as a real second process: it loads
+    the parameters, answers a bad scan with its error, and exits cleanly on SIGINT."""
+    import signal
+    params = tmp_path / "node.yaml"
+    params.write_text(f"/**:\n  ros__parameters:\n    queue_length: 5\n    output_dir: {tmp_path / 'o'}\n")
+    env = {**os.environ, "ROS_DOMAIN_ID": str(ros_domain)}
+    proc = subprocess.Popen([sys.executable, "-m", "diffavatar_ros", "--ros-args", "--params-file", str(params)],
+                            env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    cli = Client(ros_context)
+    try:
+        cli.wait_matched(timeout=30)
+        params_cli = cli.node.create_client(GetParameters, f"{NS}/get_parameters")
+        assert params_cli.wait_for_service(timeout_sec=10)
+        r = _wait(params_cli.call_async(GetParameters.Request(names=["queue_length", "result_history"])), 10)
+        assert [v.integer_value for v in r.values] == [5, 10]
+        bad = _msg("remote-bad")
+        bad.faces = bad.faces[:-1]
+        cli.send(bad)
+        res = cli.result_for("remote-bad")
+        assert res.error_code == AvatarAssets.ERROR_BAD_FACE_INDEX and "multiple of 3" in res.error_msg
+        assert (tmp_path / "o" / "remote-bad" / "error.json").exists()
+    finally:
+        cli.close()
+        proc.send_signal(signal.SIGINT)
+        out = proc.communicate(timeout=20)[0]
+    assert proc.returncode == 0, out
+    assert "FASTDDS_BUILTIN_TRANSPORTS=LARGE_DATA" in out
+
+
+def test_entry_point_rejects_invalid_parameters(tmp_path):
+    params = tmp_path / "bad.yaml"
+    params.write_text("/**:\n  ros__parameters:\n    output_dir: ''\n")
+    proc = subprocess.run([sys.executable, "-m", "diffavatar_ros", "--ros-args", "--params-file", str(params)],
+                          capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 2 and "output_dir" in proc.stdout + proc.stderr
