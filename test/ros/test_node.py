@@ -499,3 +499,72 @@ def test_entry_point_rejects_invalid_parameters(tmp_path):
     proc = subprocess.run([sys.executable, "-m", "diffavatar_ros", "--ros-args", "--params-file", str(params)],
                           capture_output=True, text=True, timeout=60)
     assert proc.returncode == 2 and "output_dir" in proc.stdout + proc.stderr
+
+
+def _garbage_string(rng):
+    kind = rng.integers(4)
+    if kind == 0:
+        return ""
+    if kind == 1:
+        return "".join(chr(c) for c in rng.integers(0x20, 0x2FF, size=rng.integers(1, 40)))
+    if kind == 2:
+        return "x" * int(rng.integers(1000, 20000))
+    return str(rng.choice(["mm", "yz", "-y", "none", "../../etc/passwd", "dress\x00"]))
+
+
+def _fuzz_scan(rng, i):
+    """A scan with at least one real defect plus random garbage in other fields."""
+    V, F, L, names = small_scan(seed=int(rng.integers(1 << 30)))
+    v, f, lab, nm = V.ravel().copy(), F.ravel().copy(), L.copy(), list(names)
+    fields = {"units": "m", "up_axis": "y", "garment_type": "", "template_name": ""}
+    choice = int(rng.integers(13))
+    if choice == 0:
+        v = rng.normal(size=3 * int(rng.integers(0, 1000)) + int(rng.integers(1, 3))).astype(np.float32)
+    elif choice == 1:
+        v[rng.integers(len(v), size=int(rng.integers(1, 20)))] = rng.choice([np.nan, np.inf, -np.inf])
+    elif choice == 2:
+        f[rng.integers(len(f), size=int(rng.integers(1, 20)))] = rng.integers(len(V), 2**32, dtype=np.uint64)
+    elif choice == 3:
+        n = int(rng.integers(1, 2 * len(V)))
+        lab = rng.integers(0, 2, size=n if n != len(V) else n + 1).astype(np.uint8)
+    elif choice == 4:
+        fields["units"] = _garbage_string(rng) or "furlong"
+    elif choice == 5:
+        fields["up_axis"] = _garbage_string(rng) or "w"
+    elif choice == 6:
+        fields["garment_type"] = (_garbage_string(rng) or "cape") + "?"
+    elif choice == 7:
+        v = v * np.float32(10.0 ** rng.choice([-4, -3, 2, 3, 5]))
+    elif choice == 8:
+        v, f, lab = np.zeros(0, np.float32), np.zeros(0, np.uint32), np.zeros(0, np.uint8)
+    elif choice == 9:
+        v = np.repeat(v[0::3], 3) * np.tile(np.float32([1, 2, 3]), len(V))
+    elif choice == 10:
+        lab = rng.integers(len(nm), 256, size=len(V)).astype(np.uint8)
+    elif choice == 11:
+        fields["template_name"] = f"/nonexistent/{rng.integers(1 << 20)}/t.obj"
+    else:
+        f = f[: len(f) - int(rng.integers(1, 3))]
+    if rng.random() < 0.5:  # garbage elsewhere, too
+        nm = [_garbage_string(rng) for _ in range(int(rng.integers(0, 5)))] or nm
+    m = SegmentedScan(job_id=f"fuzz-{i}", iterations=int(rng.integers(0, 3)), **fields)
+    m.vertices, m.faces = np.asarray(v, np.float32), np.asarray(f, np.uint32)
+    m.labels, m.label_names = np.asarray(lab, np.uint8).tobytes(), nm
+    return m
+
+
+def test_fuzz_1000_malformed_scans_then_a_good_one(setup_service, tmp_path):
+    svc, cli = setup_service(overrides=[Parameter("queue_length", value=1000)])
+    rng = np.random.default_rng(2024)
+    n = 1000
+    for i in range(n):
+        cli.send(_fuzz_scan(rng, i))
+    cli.send(_msg("good-after-fuzz", iterations=2))
+    assert cli.result_for("good-after-fuzz", timeout=60).error_code == AvatarAssets.ERROR_NONE
+    codes = {}
+    for i in range(n):  # every bad scan was answered with an error, recorded on disk
+        rec = json.loads((tmp_path / "out" / f"fuzz-{i}" / "error.json").read_text())
+        assert rec["error_code"] not in (AvatarAssets.ERROR_NONE, AvatarAssets.ERROR_INTERNAL), rec
+        codes[rec["error"]] = codes.get(rec["error"], 0) + 1
+    assert len(codes) >= 9, codes
+    assert len(svc.runner.scans) == 1
