@@ -243,10 +243,8 @@ class DiffAvatarNode(Node):
         payload = {"scan": scan,
                    "options": {"iterations": a["iterations"] or self.get_parameter("default_iterations").value},
                    "output_dir": self.get_parameter("output_dir").value}
-        job = self._queue.submit(payload, job_id=msg.job_id)
-        if job.state is JobState.QUEUED:
-            self._publish_progress(job, "queued", 0, 0, math.nan, {})
-        return job
+        return self._queue.submit(payload, job_id=msg.job_id,
+                                  on_queued=lambda job: self._publish_progress(job, "queued", 0, 0, math.nan, {}))
 
     def _on_scan(self, msg: SegmentedScan):
         self.submit(msg)
