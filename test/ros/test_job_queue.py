@@ -99,7 +99,8 @@ def test_cancel_a_queued_job_in_the_middle_of_three():
 
 def test_on_queued_runs_before_the_job_can_start_and_reject_answers_at_once():
     events = []
-    q = JobQueue(lambda job: events.append(("run", job.job_id)), on_finished=lambda job: events.append(("finished", job.job_id)))
+    q = JobQueue(lambda job: events.append(("run", job.job_id)), max_length=100,
+                 on_finished=lambda job: events.append(("finished", job.job_id)))
     jobs = [q.submit(None, job_id=f"j{i}", on_queued=lambda job: events.append(("queued", job.job_id))) for i in range(20)]
     bad = q.reject(JobError("EMPTY_MESH", "no vertices"), job_id="bad")
     assert bad.done.is_set() and bad.state is JobState.REJECTED and bad.error.code == "EMPTY_MESH"
