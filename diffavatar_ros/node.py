@@ -324,13 +324,17 @@ class DiffAvatarNode(Node):
             try:
                 from diffavatar_core.pipeline.output import write_result
                 write_result(job.result, out)
+                (out / "error.json").unlink(missing_ok=True)  # from an earlier run of this job id
             except OSError as exc:
                 self._queue.last_error = f"{job.job_id}: could not write {out}: {exc}"
                 self.get_logger().error(self._queue.last_error)
             msg = convert.result_to_assets(job.job_id, job.result)
         else:
             msg = convert.error_assets(job.job_id, job.error.code, job.error.message)
-            msg.output_dir = self._write_error(job, out)
+            other = self._queue.get(job.job_id)
+            duplicate = other is not None and other is not job and other.state in (JobState.QUEUED, JobState.RUNNING)
+            if not duplicate:  # a refused duplicate id must not write into the live job's directory
+                msg.output_dir = self._write_error(job, out)
         msg.header.stamp = self.get_clock().now().to_msg()
         job.result_msg = msg
         with self._lock:
@@ -346,6 +350,7 @@ class DiffAvatarNode(Node):
         """An error is part of the record too: <output_dir>/<job_id>/error.json."""
         try:
             out.mkdir(parents=True, exist_ok=True)
+            (out / "result.json").unlink(missing_ok=True)  # an earlier success of this job id
             (out / "error.json").write_text(json.dumps({
                 "job_id": job.job_id, "state": job.state.value, "error": job.error.code,
                 "error_code": convert.error_code(job.error.code), "message": job.error.message}, indent=2))
@@ -370,7 +375,14 @@ class DiffAvatarNode(Node):
         self._status_pub.publish(arr)
 
     def destroy_node(self):
+        """Cancels every job; goals still open get their (cancelled) result while the executor
+        spins (up to 1 s), then the action server goes before the rest of the node."""
         self._queue.shutdown()
+        deadline = time.monotonic() + 1.0
+        while self._goal_jobs and time.monotonic() < deadline and self.context.ok():
+            self._wake.trigger()
+            time.sleep(0.01)
+        self._action.destroy()
         super().destroy_node()
 
 

@@ -568,3 +568,31 @@ def test_fuzz_1000_malformed_scans_then_a_good_one(setup_service, tmp_path):
         codes[rec["error"]] = codes.get(rec["error"], 0) + 1
     assert len(codes) >= 9, codes
     assert len(svc.runner.scans) == 1
+
+
+def test_duplicate_job_id_is_refused_and_a_rerun_replaces_the_record(setup_service, tmp_path):
+    runner = SphereFitRunner(repeat=100)
+    svc, cli = setup_service(runner)
+    bad = _msg("same")
+    bad.units = "mm"
+    cli.send(bad)
+    assert cli.result_for("same").error_code == AvatarAssets.ERROR_BAD_OPTION
+    out = tmp_path / "out" / "same"
+    assert (out / "error.json").exists()
+    cli.results.clear()
+    cli.send(_msg("same", iterations=1000))
+    assert runner.started.wait(10)
+    cli.send(_msg("same", iterations=2))  # while the first runs
+    dup = cli.result_for("same")
+    assert dup.error_code == AvatarAssets.ERROR_BAD_OPTION and "already queued or running" in dup.error_msg
+    assert dup.output_dir == ""  # not written into the running job's directory
+    assert json.loads((out / "error.json").read_text())["error"] == "BAD_OPTION"  # still the first run's
+    cli.cancel("same")
+    deadline = time.monotonic() + 10
+    while len(cli.results) < 2 and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert cli.results[1].error_code == AvatarAssets.ERROR_CANCELLED
+    cli.results.clear()
+    cli.send(_msg("same", iterations=2))
+    assert cli.result_for("same").error_code == AvatarAssets.ERROR_NONE
+    assert (out / "result.json").exists() and not (out / "error.json").exists()
