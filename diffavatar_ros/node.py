@@ -240,6 +240,10 @@ class DiffAvatarNode(Node):
         except scan_validation.ScanError as err:
             return self._queue.reject(JobError(err.code, str(err)), job_id=msg.job_id,
                                       payload={"output_dir": self.get_parameter("output_dir").value})
+        except Exception as exc:  # a bug (or MemoryError) must not take the executor down
+            self.get_logger().error(f"validating scan {msg.job_id!r} failed unexpectedly: {exc!r}")
+            return self._queue.reject(JobError("INTERNAL", f"validation failed: {type(exc).__name__}: {exc}"),
+                                      job_id=msg.job_id, payload={"output_dir": self.get_parameter("output_dir").value})
         payload = {"scan": scan,
                    "options": {"iterations": a["iterations"] or self.get_parameter("default_iterations").value},
                    "output_dir": self.get_parameter("output_dir").value}
