@@ -54,6 +54,7 @@ setup(
         ("share/diffavatar", ["package.xml"]),
         ("share/diffavatar/config", [str(p.relative_to(ROOT)) for p in sorted((ROOT / "config").glob("*.yaml"))]),
     ],
-    entry_points={"console_scripts": ["diffavatar = diffavatar_core.cli:main"]},
+    entry_points={"console_scripts": ["diffavatar = diffavatar_core.cli:main",
+                                      "diffavatar-node = diffavatar_ros.node:main"]},
     zip_safe=False,
 )

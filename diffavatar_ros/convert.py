@@ -190,3 +190,34 @@ def shape_msgs_to_mesh(msg) -> tuple[np.ndarray, np.ndarray]:
     V = np.array([[p.x, p.y, p.z] for p in msg.vertices], dtype=np.float64).reshape(-1, 3)
     F = np.array([list(t.vertex_indices) for t in msg.triangles], dtype=np.int64).reshape(-1, 3)
     return V, F
+
+
+def assets_to_result(msg, loss_history=()):
+    """A diffavatar_core.pipeline.result.RecoveryResult from a successful AvatarAssets (the
+    inverse of result_to_assets), so a client writes the same files as the CLI with
+    diffavatar_core.pipeline.output.write_result. loss_history: per iteration
+    {"iteration", "value", "terms"}, e.g. gathered from the job's progress messages."""
+    from diffavatar_core.pipeline.result import BodyAssets, MaterialAssets, PatternAssets, RecoveryResult
+    a = assets_to_arrays(msg)
+    p, m, b = msg.pattern, msg.material, msg.body
+    metrics = {"chamfer_initial_cm": msg.chamfer_initial_cm, "chamfer_final_cm": msg.chamfer_final_cm,
+               "mesh_quality_min": msg.mesh_quality_min, "mesh_quality_avg": msg.mesh_quality_avg,
+               "seam_length_mismatch_max_pct": msg.seam_length_mismatch_max_pct}
+    uv = a["garment_uv"] if len(a["garment_uv"]) == len(a["garment_vertices"]) else None
+    return RecoveryResult(
+        garment_type=msg.garment_type, template_name=msg.template_name,
+        pattern=PatternAssets(rest_xy=a["rest_xy"], triangles=a["triangles"],
+                              panel_vertex_start=a["panel_vertex_start"], panel_names=list(p.panel_names),
+                              panel_grain_rad=np.frombuffer(p.panel_grain_rad, np.float64),
+                              seam_pairs=a["seam_pairs"], handles=a["handles"]),
+        material=MaterialAssets(bending_stiffness=m.bending_stiffness,
+                                panel_bending_stiffness=np.frombuffer(m.panel_bending_stiffness, np.float64),
+                                compliance_warp=m.compliance_warp, compliance_weft=m.compliance_weft,
+                                compliance_shear=m.compliance_shear, density=m.density, thickness=m.thickness),
+        body=BodyAssets(model_id=b.model_id, shape=a["shape"], joint_names=list(b.joint_names), pose=a["pose"],
+                        bone_scales=np.frombuffer(b.bone_scales, np.float64),
+                        global_transform=np.frombuffer(b.global_transform, np.float64)),
+        garment_vertices=a["garment_vertices"].astype(np.float64), garment_faces=a["garment_faces"].astype(np.int64),
+        garment_uv=uv, body_vertices=a["body_vertices"].astype(np.float64),
+        body_faces=a["body_faces"].astype(np.int64), metrics=metrics, iterations=int(msg.iterations),
+        wall_s=float(msg.wall_s), loss_history=list(loss_history))

@@ -79,9 +79,10 @@ class JobQueue:
         self.last_error: str = ""
 
     # -- submission / cancel -------------------------------------------------------------
-    def submit(self, payload: Any, job_id: str = "") -> Job:
+    def submit(self, payload: Any, job_id: str = "", on_queued: Callable[[Job], None] | None = None) -> Job:
         """Queues a job (job_id assigned when empty). A full queue or a job id already queued or
-        running gives a job that is immediately REJECTED with its error set."""
+        running gives a job that is immediately REJECTED with its error set. on_queued(job) runs
+        once the job is queued and before the worker can start it (keep it quick)."""
         job = Job(job_id or uuid.uuid4().hex[:12], payload)
         with self._cv:
             busy = job.job_id in self._jobs and self._jobs[job.job_id].state in (JobState.QUEUED, JobState.RUNNING)
@@ -92,9 +93,18 @@ class JobQueue:
             else:
                 self._jobs[job.job_id] = job
                 self._pending.append(job)
+                if on_queued is not None:
+                    on_queued(job)
                 self._cv.notify_all()
         if job.state is JobState.REJECTED:
             self._finish(job)
+        return job
+
+    def reject(self, error: JobError, job_id: str = "", payload: Any = None) -> Job:
+        """A job refused before queueing (e.g. invalid input): finished at once as REJECTED with
+        `error`, through on_finished like every other job; it never takes a queue slot."""
+        job = Job(job_id or uuid.uuid4().hex[:12], payload, state=JobState.REJECTED, error=error)
+        self._finish(job)
         return job
 
     def cancel(self, job_id: str) -> bool:

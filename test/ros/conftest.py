@@ -9,12 +9,29 @@ rclpy = pytest.importorskip("rclpy", reason="ROS 2 (rclpy) is not installed in t
 
 
 @pytest.fixture
-def ros_context():
+def ros_domain():
+    """A DDS domain id reserved for this test."""
     import domain_coordinator
     with domain_coordinator.domain_id() as domain:
-        ctx = rclpy.context.Context()
-        rclpy.init(context=ctx, domain_id=domain)
-        try:
-            yield ctx
-        finally:
-            rclpy.shutdown(context=ctx)
+        yield domain
+
+
+@pytest.fixture
+def ros_context(ros_domain):
+    ctx = rclpy.context.Context()
+    rclpy.init(context=ctx, domain_id=ros_domain)
+    try:
+        yield ctx
+    finally:
+        rclpy.shutdown(context=ctx)
+
+
+@pytest.fixture
+def client_context(ros_domain, ros_context):
+    """A second context on the same domain: its own DDS participant, as a separate client is."""
+    ctx = rclpy.context.Context()
+    rclpy.init(context=ctx, domain_id=ros_domain)
+    try:
+        yield ctx
+    finally:
+        rclpy.shutdown(context=ctx)

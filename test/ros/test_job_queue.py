@@ -95,3 +95,18 @@ def test_cancel_a_queued_job_in_the_middle_of_three():
     assert mid.state is JobState.CANCELLED and first.state is JobState.CANCELLED
     assert last.state is JobState.SUCCEEDED
     q.shutdown()
+
+
+def test_on_queued_runs_before_the_job_can_start_and_reject_answers_at_once():
+    events = []
+    q = JobQueue(lambda job: events.append(("run", job.job_id)), max_length=100,
+                 on_finished=lambda job: events.append(("finished", job.job_id)))
+    jobs = [q.submit(None, job_id=f"j{i}", on_queued=lambda job: events.append(("queued", job.job_id))) for i in range(20)]
+    bad = q.reject(JobError("EMPTY_MESH", "no vertices"), job_id="bad")
+    assert bad.done.is_set() and bad.state is JobState.REJECTED and bad.error.code == "EMPTY_MESH"
+    for j in jobs:
+        assert j.done.wait(10)
+    for i in range(20):
+        assert events.index(("queued", f"j{i}")) < events.index(("run", f"j{i}")) < events.index(("finished", f"j{i}"))
+    assert ("finished", "bad") in events and ("run", "bad") not in events
+    q.shutdown()

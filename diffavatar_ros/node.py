@@ -1,0 +1,415 @@
+"""diffavatar_node: the ROS 2 asset service (thin: all computation is diffavatar_core's).
+
+Front doors, both feeding one FIFO JobQueue:
+  ~/scans     diffavatar_msgs/SegmentedScan              topic (capture rigs, batch jobs)
+  ~/optimize  diffavatar_msgs/action/OptimizeAvatar      action (feedback = progress, cancel)
+Outputs:
+  ~/progress  diffavatar_msgs/OptimizationProgress  "queued", then every iteration of every job
+  ~/result    diffavatar_msgs/AvatarAssets   RELIABLE + TRANSIENT_LOCAL + KEEP_LAST(result_history)
+  ~/status    diagnostic_msgs/DiagnosticArray  queue length, current job, last error
+Control:
+  ~/cancel    std_msgs/String  job id to cancel (queued or running)
+Every result is also written to <output_dir>/<job_id>/ (the CLI's files; error.json for an
+error), so nothing is lost when nobody listens. Bad input never stops the node: it is answered
+with an error result (diffavatar_core.scan_validation decides what is bad).
+
+What a job computes is the injectable `runner(scan, options, run_control) -> RecoveryResult`;
+the default is diffavatar_core.pipeline.recover, imported when the first job runs.
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import pathlib
+import threading
+import time
+
+LARGE_DATA_ENV = "FASTDDS_BUILTIN_TRANSPORTS"
+
+
+def configure_large_data_transport() -> str:
+    """Selects Fast DDS's documented large-data transport (rmw_fastrtps README:
+    FASTDDS_BUILTIN_TRANSPORTS=LARGE_DATA: UDP for discovery, TCP + shared memory for data)
+    unless the user chose a transport. Without it, messages above the 512 KB default shared-memory
+    segment can be dropped (rmw_fastrtps#576). Takes effect for DDS participants created
+    afterwards, so it runs at import of this module, before any rclpy context makes one.
+    Returns the transport in effect."""
+    return os.environ.setdefault(LARGE_DATA_ENV, "LARGE_DATA")
+
+
+configure_large_data_transport()
+
+import rclpy  # noqa: E402
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue  # noqa: E402
+from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,  # noqa: E402
+                                SetParametersResult)
+from rclpy.action import ActionServer, CancelResponse, GoalResponse  # noqa: E402
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup  # noqa: E402
+from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor  # noqa: E402
+from rclpy.node import Node  # noqa: E402
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
+from std_msgs.msg import String  # noqa: E402
+
+import diffavatar_core as dc  # noqa: E402
+from diffavatar_core import scan_validation  # noqa: E402
+from diffavatar_core.config import load_config  # noqa: E402
+from diffavatar_msgs.action import OptimizeAvatar  # noqa: E402
+from diffavatar_msgs.msg import AvatarAssets, OptimizationProgress, SegmentedScan  # noqa: E402
+
+from . import convert  # noqa: E402
+from .job_queue import Job, JobError, JobQueue, JobState  # noqa: E402
+
+NODE_NAME = "diffavatar_node"
+
+# name: (description, read_only, (min, max) or None). Defaults come from config/diffavatar.yaml
+# (`node:` section; `threads` from the top level).
+PARAMETERS = {
+    "queue_length": ("jobs waiting at most; a full queue answers ERROR_QUEUE_FULL (applies to the next submission)",
+                     False, (1, 1000)),
+    "result_history": ("results latched on ~/result for late subscribers (KEEP_LAST depth; fixed at start-up)",
+                       True, (1, 1000)),
+    "output_dir": ("directory where every result is also written, one sub-directory per job id "
+                   "(applies from the next job)", False, None),
+    "max_vertices": ("largest scan accepted, vertices; larger scans get ERROR_TOO_LARGE (applies from the next job)",
+                     False, (1, 100_000_000)),
+    "default_iterations": ("optimization iterations when a scan asks for 0 (applies from the next job)",
+                           False, (1, 100_000)),
+    "threads": ("OpenMP threads of the core (fixed at start-up)", True, (1, 256)),
+    "status_period_s": ("period of ~/status, s (fixed at start-up)", True, (0.05, 60.0)),
+}
+
+
+def parameter_defaults() -> dict:
+    """The node's parameter defaults from the project configuration."""
+    cfg = load_config()
+    out = dict(cfg["node"])
+    out["threads"] = int(cfg["threads"])
+    return out
+
+
+def result_qos(depth: int) -> QoSProfile:
+    """Latched results: late subscribers get the last `depth` results (Nav2 map_server style);
+    subscribers must use the same profile."""
+    return QoSProfile(depth=depth, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE,
+                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+# Scans and cancels are never dropped by DDS: RELIABLE + KEEP_ALL (a burst of scans waits in
+# the reader's history until the node queues each; the job queue then answers every one).
+SCAN_QOS = QoSProfile(depth=1, history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE)
+PROGRESS_QOS = QoSProfile(depth=100, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE)
+
+
+class RunControl:
+    """What a runner gets to report progress and see cancellation (Python twin of the core's
+    RunControl): `cancel` is the job's diffavatar_core.CancelToken (pass it to core calls, which
+    stop within one iteration); `check(stage)` raises diffavatar_core.Cancelled once cancelled;
+    `report(stage, iteration, max_iterations, loss, terms)` publishes an OptimizationProgress
+    (loss in loss units, terms: name -> value)."""
+
+    def __init__(self, cancel: dc.CancelToken, report):
+        self.cancel = cancel
+        self._report = report
+
+    @property
+    def cancelled(self) -> bool:
+        return self.cancel.cancelled
+
+    def check(self, stage: str = "") -> None:
+        if self.cancel.cancelled:
+            raise dc.Cancelled(f"cancelled during {stage}" if stage else "cancelled")
+
+    def report(self, stage: str, iteration: int, max_iterations: int, loss: float = math.nan,
+               terms: dict | None = None) -> None:
+        self._report(stage, iteration, max_iterations, loss, terms or {})
+
+
+def default_runner(scan, options, run_control):
+    """The recovery pipeline (imported on first use: the node starts without it)."""
+    try:
+        from diffavatar_core.pipeline import recover
+    except ImportError as exc:
+        raise JobError("INTERNAL", f"the recovery pipeline diffavatar_core.pipeline.recover is not "
+                                   f"available in this installation ({exc})") from None
+    return recover(scan, options, run_control)
+
+
+class _Resume:
+    """Awaitable that hands control back to the executor once (rclpy resumes in-progress
+    coroutines each time the executor wakes; the worker wakes it through a guard condition)."""
+
+    def __await__(self):
+        yield
+
+
+def _safe_dir_name(job_id: str) -> str:
+    keep = "".join(c if c.isalnum() or c in "-_." else "_" for c in job_id)
+    return keep.strip(".") or "job"
+
+
+class DiffAvatarNode(Node):
+    """The asset service node. `runner(scan, options, run_control) -> RecoveryResult` is what a
+    job computes: scan is a diffavatar_core.scan_validation.Scan (metres, Y up), options
+    {"job_id", "iterations"}, run_control a RunControl. Create it on an rclpy context and spin it
+    with a MultiThreadedExecutor (main() does)."""
+
+    def __init__(self, runner=None, **node_kwargs):
+        super().__init__(NODE_NAME, **node_kwargs)
+        defaults = parameter_defaults()
+        for name, (desc, read_only, rng) in PARAMETERS.items():
+            default = defaults[name]
+            d = ParameterDescriptor(description=desc, read_only=read_only)
+            if isinstance(default, bool):
+                pass
+            elif isinstance(default, int) and rng:
+                d.integer_range = [IntegerRange(from_value=rng[0], to_value=rng[1], step=1)]
+            elif isinstance(default, float) and rng:
+                d.floating_point_range = [FloatingPointRange(from_value=float(rng[0]), to_value=float(rng[1]),
+                                                             step=0.0)]
+            self.declare_parameter(name, default, d)
+        for name in ("output_dir",):  # parameters given on the command line bypass the callback
+            problem = self._parameter_problem(name, self.get_parameter(name).value)
+            if problem:
+                raise ValueError(f"parameter {name}: {problem}")
+        self.add_on_set_parameters_callback(self._validate_parameters)
+        self.add_post_set_parameters_callback(self._apply_parameters)
+        self._runner = runner or default_runner
+        dc.set_num_threads(self.get_parameter("threads").value)
+
+        # Intake (scans, cancels, goal requests) is one mutually exclusive group: submissions are
+        # queued in arrival order. Each is quick; the jobs themselves run on the worker thread.
+        self._intake = MutuallyExclusiveCallbackGroup()
+        self._group = ReentrantCallbackGroup()
+        self._lock = threading.Lock()
+        self._latest_progress: dict[str, OptimizationProgress] = {}
+        self._goal_jobs: dict[bytes, Job] = {}
+        self._wake = self.create_guard_condition(lambda: None, callback_group=self._group)
+        self._progress_pub = self.create_publisher(OptimizationProgress, "~/progress", PROGRESS_QOS)
+        self._result_pub = self.create_publisher(AvatarAssets, "~/result",
+                                                 result_qos(self.get_parameter("result_history").value))
+        self._status_pub = self.create_publisher(DiagnosticArray, "~/status", 10)
+        self._queue = JobQueue(self._work, max_length=self.get_parameter("queue_length").value,
+                               on_finished=self._on_finished, log=lambda m: self.get_logger().error(m))
+        self.create_subscription(SegmentedScan, "~/scans", self._on_scan, SCAN_QOS, callback_group=self._intake)
+        self.create_subscription(String, "~/cancel", self._on_cancel, SCAN_QOS, callback_group=self._intake)
+        self._action = ActionServer(self, OptimizeAvatar, "~/optimize", execute_callback=self._execute,
+                                    goal_callback=lambda goal: GoalResponse.ACCEPT,
+                                    handle_accepted_callback=self._on_goal_accepted,
+                                    cancel_callback=self._on_goal_cancel, callback_group=self._intake)
+        self.create_timer(self.get_parameter("status_period_s").value, self.publish_status,
+                          callback_group=self._group)
+        self.get_logger().info(f"ready: topic {self.resolve_topic_name('~/scans')}, action "
+                               f"{self.resolve_topic_name('~/optimize')}, transport "
+                               f"{LARGE_DATA_ENV}={os.environ.get(LARGE_DATA_ENV, '')}")
+
+    @property
+    def queue(self) -> JobQueue:
+        return self._queue
+
+    # -- parameters ------------------------------------------------------------------------
+    @staticmethod
+    def _parameter_problem(name, value) -> str:
+        if name == "output_dir" and not str(value).strip():
+            return "must not be empty"
+        return ""
+
+    def _validate_parameters(self, params) -> SetParametersResult:
+        for p in params:
+            problem = self._parameter_problem(p.name, p.value)
+            if problem:
+                return SetParametersResult(successful=False, reason=f"{p.name}: {problem}")
+        return SetParametersResult(successful=True)
+
+    def _apply_parameters(self, params) -> None:
+        for p in params:
+            if p.name == "queue_length":
+                self._queue.max_length = int(p.value)
+
+    # -- intake ----------------------------------------------------------------------------
+    def submit(self, msg: SegmentedScan) -> Job:
+        """Validates and queues a scan (from the topic, the action or Python); the job's
+        parameters are fixed here. Invalid input or a full queue gives a job that is already
+        finished with its error result (it never takes a queue slot)."""
+        a = convert.msg_to_arrays(msg)
+        try:
+            scan = scan_validation.validate_scan(
+                a["vertices"], a["faces"], a["labels"], a["label_names"], units=a["units"], up_axis=a["up_axis"],
+                garment_type=a["garment_type"], template_name=a["template_name"],
+                max_vertices=self.get_parameter("max_vertices").value)
+        except scan_validation.ScanError as err:
+            return self._queue.reject(JobError(err.code, str(err)), job_id=msg.job_id,
+                                      payload={"output_dir": self.get_parameter("output_dir").value})
+        except Exception as exc:  # a bug (or MemoryError) must not take the executor down
+            self.get_logger().error(f"validating scan {msg.job_id!r} failed unexpectedly: {exc!r}")
+            return self._queue.reject(JobError("INTERNAL", f"validation failed: {type(exc).__name__}: {exc}"),
+                                      job_id=msg.job_id, payload={"output_dir": self.get_parameter("output_dir").value})
+        payload = {"scan": scan,
+                   "options": {"iterations": a["iterations"] or self.get_parameter("default_iterations").value},
+                   "output_dir": self.get_parameter("output_dir").value}
+        return self._queue.submit(payload, job_id=msg.job_id,
+                                  on_queued=lambda job: self._publish_progress(job, "queued", 0, 0, math.nan, {}))
+
+    def _on_scan(self, msg: SegmentedScan):
+        self.submit(msg)
+
+    def _on_cancel(self, msg: String):
+        if not self._queue.cancel(msg.data):
+            self.get_logger().warn(f"cancel: no queued or running job {msg.data!r}")
+
+    def _on_goal_accepted(self, goal_handle) -> None:
+        """Queues the goal's scan now, in arrival order with the topic's scans, then starts
+        the execute coroutine that follows the job."""
+        job = self.submit(goal_handle.request.scan)
+        with self._lock:
+            self._goal_jobs[bytes(goal_handle.goal_id.uuid)] = job
+        goal_handle.execute()
+
+    def _on_goal_cancel(self, goal_handle) -> CancelResponse:
+        """Accepts; the goal's coroutine, woken once the goal is CANCELING, cancels its job
+        (so a cancelled goal always ends CANCELED, never ABORTED by a race)."""
+        self._wake.trigger()
+        return CancelResponse.ACCEPT
+
+    async def _execute(self, goal_handle):
+        """Runs as a coroutine: it never blocks an executor thread while its job waits or runs."""
+        key = bytes(goal_handle.goal_id.uuid)
+        with self._lock:
+            job = self._goal_jobs[key]
+        sent = None
+        try:
+            while not job.done.is_set():
+                if goal_handle.is_cancel_requested and not job.cancel.cancelled:
+                    self._queue.cancel(job.job_id)
+                    continue
+                with self._lock:
+                    fb = self._latest_progress.get(job.job_id)
+                if fb is not None and fb is not sent:
+                    goal_handle.publish_feedback(OptimizeAvatar.Feedback(progress=fb))
+                    sent = fb
+                await _Resume()
+        finally:
+            with self._lock:
+                self._goal_jobs.pop(key, None)
+        if job.state is JobState.SUCCEEDED:
+            goal_handle.succeed()
+        elif job.state is JobState.CANCELLED and goal_handle.is_cancel_requested:
+            goal_handle.canceled()
+        else:
+            goal_handle.abort()
+        return OptimizeAvatar.Result(assets=job.result_msg)
+
+    # -- work (worker thread) ----------------------------------------------------------------
+    def _work(self, job: Job):
+        options = {"job_id": job.job_id, **job.payload["options"]}
+        t0 = time.monotonic()
+
+        def report(stage, iteration, max_iterations, loss, terms):
+            self._publish_progress(job, stage, iteration, max_iterations, loss, terms, t0)
+
+        try:
+            return self._runner(job.payload["scan"], options, RunControl(job.cancel, report))
+        except scan_validation.ScanError as err:  # input problems found while recovering
+            raise JobError(err.code, str(err)) from None
+
+    def _publish_progress(self, job, stage, iteration, max_iterations, loss, terms, t0=None):
+        elapsed = time.monotonic() - (t0 if t0 is not None else job.submitted)
+        eta = elapsed / iteration * (max_iterations - iteration) if iteration > 0 and max_iterations else -1.0
+        msg = convert.progress_msg(job.job_id, stage, iteration, max_iterations, loss, terms, elapsed, eta)
+        msg.header.stamp = self.get_clock().now().to_msg()
+        with self._lock:
+            self._latest_progress[job.job_id] = msg
+        self._progress_pub.publish(msg)
+        self._wake.trigger()
+
+    def _on_finished(self, job: Job):
+        out = pathlib.Path(job.payload["output_dir"]) / _safe_dir_name(job.job_id)
+        if job.state is JobState.SUCCEEDED:
+            try:
+                from diffavatar_core.pipeline.output import write_result
+                write_result(job.result, out)
+                (out / "error.json").unlink(missing_ok=True)  # from an earlier run of this job id
+            except OSError as exc:
+                self._queue.last_error = f"{job.job_id}: could not write {out}: {exc}"
+                self.get_logger().error(self._queue.last_error)
+            msg = convert.result_to_assets(job.job_id, job.result)
+        else:
+            msg = convert.error_assets(job.job_id, job.error.code, job.error.message)
+            other = self._queue.get(job.job_id)
+            duplicate = other is not None and other is not job and other.state in (JobState.QUEUED, JobState.RUNNING)
+            if not duplicate:  # a refused duplicate id must not write into the live job's directory
+                msg.output_dir = self._write_error(job, out)
+        msg.header.stamp = self.get_clock().now().to_msg()
+        job.result_msg = msg
+        with self._lock:
+            self._latest_progress.pop(job.job_id, None)
+        self._result_pub.publish(msg)
+        self._wake.trigger()
+        if job.state is JobState.SUCCEEDED:
+            self.get_logger().info(f"job {job.job_id}: succeeded in {job.finished - job.started:.2f} s")
+        else:
+            self.get_logger().warn(f"job {job.job_id}: {job.state.value} ({job.error})")
+
+    def _write_error(self, job: Job, out: pathlib.Path) -> str:
+        """An error is part of the record too: <output_dir>/<job_id>/error.json."""
+        try:
+            out.mkdir(parents=True, exist_ok=True)
+            (out / "result.json").unlink(missing_ok=True)  # an earlier success of this job id
+            (out / "error.json").write_text(json.dumps({
+                "job_id": job.job_id, "state": job.state.value, "error": job.error.code,
+                "error_code": convert.error_code(job.error.code), "message": job.error.message}, indent=2))
+            return str(out)
+        except OSError as exc:
+            self.get_logger().error(f"could not write the error record of {job.job_id}: {exc}")
+            return ""
+
+    # -- status ----------------------------------------------------------------------------
+    def publish_status(self):
+        cur = self._queue.current
+        last_error = self._queue.last_error
+        st = DiagnosticStatus(name=f"{self.get_name()}: job queue", hardware_id="diffavatar")
+        st.level = DiagnosticStatus.OK
+        st.message = f"running {cur.job_id}" if cur else "idle"
+        st.values = [KeyValue(key="queue_length", value=str(self._queue.length)),
+                     KeyValue(key="queue_capacity", value=str(self._queue.max_length)),
+                     KeyValue(key="current_job", value=cur.job_id if cur else ""),
+                     KeyValue(key="last_error", value=last_error)]
+        arr = DiagnosticArray(status=[st])
+        arr.header.stamp = self.get_clock().now().to_msg()
+        self._status_pub.publish(arr)
+
+    def destroy_node(self):
+        """Cancels every job; goals still open get their (cancelled) result while the executor
+        spins (up to 1 s), then the action server goes before the rest of the node."""
+        self._queue.shutdown()
+        deadline = time.monotonic() + 1.0
+        while self._goal_jobs and time.monotonic() < deadline and self.context.ok():
+            self._wake.trigger()
+            time.sleep(0.01)
+        self._action.destroy()
+        super().destroy_node()
+
+
+def main(args=None):
+    """Console entry `diffavatar-node` / `python -m diffavatar_ros` (accepts --ros-args)."""
+    configure_large_data_transport()
+    rclpy.init(args=args)
+    try:
+        node = DiffAvatarNode()
+    except Exception as exc:  # a bad --params-file value: say so and exit non-zero
+        print(f"diffavatar_node: {exc}", flush=True)
+        rclpy.try_shutdown()
+        raise SystemExit(2)
+    executor = MultiThreadedExecutor(num_threads=4)
+    executor.add_node(node)
+    try:
+        executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == "__main__":
+    main()

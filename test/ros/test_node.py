@@ -1,0 +1,598 @@
+"""diffavatar_node over real DDS, without launch: the node spins in this process on its own
+context; the client is a separate context (its own DDS participant) or a second OS process.
+Jobs are real core work (service_helpers.SphereFitRunner) injected as the node's runner."""
+from __future__ import annotations
+
+import json
+import os
+import pathlib
+import subprocess
+import sys
+import threading
+import time
+
+import numpy as np
+import pytest
+import rclpy
+from rclpy.action import ActionClient
+from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
+from rclpy.parameter import Parameter
+from rcl_interfaces.srv import GetParameters
+from action_msgs.msg import GoalStatus
+from std_msgs.msg import String
+
+from diffavatar_core import scan_validation
+from diffavatar_msgs.action import OptimizeAvatar
+from diffavatar_msgs.msg import AvatarAssets, OptimizationProgress, SegmentedScan
+from diffavatar_ros import convert
+from diffavatar_ros.node import (LARGE_DATA_ENV, PROGRESS_QOS, SCAN_QOS, DiffAvatarNode, result_qos)
+from service_helpers import SphereFitRunner, grid_sphere, small_scan
+
+HERE = pathlib.Path(__file__).resolve().parent
+NS = "/diffavatar_node"
+
+
+def _spin_in_thread(executor):
+    t = threading.Thread(target=executor.spin, daemon=True)
+    t.start()
+    return t
+
+
+class Service:
+    """The node under test, spun by a MultiThreadedExecutor in a background thread."""
+
+    def __init__(self, ctx, runner, overrides=(), cli_args=None):
+        self.runner = runner
+        self.node = DiffAvatarNode(runner=runner, context=ctx, parameter_overrides=list(overrides),
+                                   cli_args=cli_args)
+        self.executor = MultiThreadedExecutor(num_threads=4, context=ctx)
+        self.executor.add_node(self.node)
+        self.thread = _spin_in_thread(self.executor)
+
+    def close(self):
+        self.node.destroy_node()
+        self.executor.shutdown()
+
+
+class Client:
+    """A client node on its own context: publishes scans/cancels, records progress and results."""
+
+    def __init__(self, ctx, name="client", history=10):
+        self.node = rclpy.create_node(name, context=ctx)
+        self.progress, self.results, self.lock = [], [], threading.Lock()
+        self.result_event = threading.Condition(self.lock)
+        self.scan_pub = self.node.create_publisher(SegmentedScan, f"{NS}/scans", SCAN_QOS)
+        self.cancel_pub = self.node.create_publisher(String, f"{NS}/cancel", SCAN_QOS)
+        self.node.create_subscription(OptimizationProgress, f"{NS}/progress", self._on_progress, PROGRESS_QOS)
+        self.node.create_subscription(AvatarAssets, f"{NS}/result", self._on_result, result_qos(history))
+        self.action = ActionClient(self.node, OptimizeAvatar, f"{NS}/optimize")
+        self.executor = SingleThreadedExecutor(context=ctx)
+        self.executor.add_node(self.node)
+        self.thread = _spin_in_thread(self.executor)
+
+    def _on_progress(self, msg):
+        with self.lock:
+            self.progress.append(msg)
+
+    def _on_result(self, msg):
+        with self.lock:
+            self.results.append(msg)
+            self.result_event.notify_all()
+
+    def wait_matched(self, timeout=10.0):
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            if self.scan_pub.get_subscription_count() and self.cancel_pub.get_subscription_count() \
+                    and self.node.count_publishers(f"{NS}/result") and self.node.count_publishers(f"{NS}/progress"):
+                return
+            time.sleep(0.02)
+        raise AssertionError("the client did not discover the node")
+
+    def send(self, msg):
+        self.scan_pub.publish(msg)
+
+    def cancel(self, job_id):
+        self.cancel_pub.publish(String(data=job_id))
+
+    def wait_results(self, n, timeout=30.0):
+        with self.lock:
+            ok = self.result_event.wait_for(lambda: len(self.results) >= n, timeout)
+            assert ok, f"got {len(self.results)} of {n} results within {timeout} s"
+            return list(self.results)
+
+    def result_for(self, job_id, timeout=30.0):
+        with self.lock:
+            ok = self.result_event.wait_for(lambda: any(r.job_id == job_id for r in self.results), timeout)
+            assert ok, f"no result for {job_id} within {timeout} s (got {[r.job_id for r in self.results]})"
+            return next(r for r in self.results if r.job_id == job_id)
+
+    def progress_of(self, job_id):
+        with self.lock:
+            return [p for p in self.progress if p.job_id == job_id]
+
+    def close(self):
+        self.action.destroy()
+        self.node.destroy_node()
+        self.executor.shutdown()
+
+
+def _wait(future, timeout=20.0):
+    deadline = time.monotonic() + timeout
+    while not future.done() and time.monotonic() < deadline:
+        time.sleep(0.005)
+    assert future.done(), "no answer within the timeout"
+    return future.result()
+
+
+def _msg(job_id, iterations=4, **kw):
+    V, F, L, names = small_scan()
+    return convert.scan_to_msg(V, F, L, names, job_id=job_id, iterations=iterations, **kw)
+
+
+@pytest.fixture
+def setup_service(ros_context, client_context, tmp_path):
+    made = []
+
+    def make(runner=None, overrides=(), **kw):
+        runner = runner or SphereFitRunner()
+        svc = Service(ros_context, runner, [Parameter("output_dir", value=str(tmp_path / "out")), *overrides], **kw)
+        cli = Client(client_context)
+        made.extend([cli, svc])
+        cli.wait_matched()
+        return svc, cli
+
+    yield make
+    for m in made:
+        m.close()
+
+
+def test_topic_job_progress_result_on_disk_and_latched(setup_service, client_context, tmp_path):
+    svc, cli = setup_service()
+    cli.send(_msg("job-topic", iterations=5))
+    res = cli.result_for("job-topic")
+    assert res.error_code == AvatarAssets.ERROR_NONE, res.error_msg
+
+    # progress: queued, then every iteration in order, all before the result
+    prog = cli.progress_of("job-topic")
+    assert prog[0].stage == "queued"
+    its = [p.iteration for p in prog if p.stage == "optimize"]
+    assert its == [1, 2, 3, 4, 5] and all(p.max_iterations == 5 for p in prog[1:])
+    assert all(np.isfinite(p.loss) and list(p.loss_term_names) == ["feature"] for p in prog[1:])
+
+    # the assets are what the runner computes for the same validated input
+    V, F, L, names = small_scan()
+    ref = SphereFitRunner()(scan_validation.validate_scan(V, F, L, names), {"iterations": 5, "job_id": "x"},
+                            _NullControl())
+    got = convert.assets_to_arrays(res)
+    np.testing.assert_allclose(got["garment_vertices"], ref.garment_vertices, rtol=1e-6, atol=1e-7)
+    np.testing.assert_array_equal(got["garment_faces"], ref.garment_faces)
+    np.testing.assert_allclose(got["rest_xy"], ref.pattern.rest_xy, rtol=0, atol=0)
+    assert res.chamfer_final_cm == pytest.approx(ref.metrics["chamfer_final_cm"], rel=1e-12)
+    assert res.chamfer_final_cm < res.chamfer_initial_cm  # the fit improved
+    assert res.garment_type == "tshirt" and res.iterations == 5
+
+    # the same files as the CLI, on disk
+    out = pathlib.Path(res.output_dir)
+    assert out == tmp_path / "out" / "job-topic"
+    summary = json.loads((out / "result.json").read_text())
+    assert summary["iterations"] == 5 and len(summary["loss_history"]) == 5
+    assert {"garment_rest.obj", "garment_draped.obj", "body.obj", "loss.png"} <= {p.name for p in out.iterdir()}
+
+    # a subscriber that joins after the result still gets it (TRANSIENT_LOCAL)
+    late = Client(client_context, name="late_client")
+    try:
+        assert late.result_for("job-topic", timeout=10).error_code == AvatarAssets.ERROR_NONE
+    finally:
+        late.close()
+
+
+class _NullControl:
+    import diffavatar_core as _dc
+    cancel = _dc.CancelToken()
+
+    def check(self, stage=""):
+        pass
+
+    def report(self, *a, **k):
+        pass
+
+
+def test_action_goal_feedback_result(setup_service):
+    svc, cli = setup_service()
+    assert cli.action.wait_for_server(timeout_sec=10)
+    feedback = []
+    gh = _wait(cli.action.send_goal_async(OptimizeAvatar.Goal(scan=_msg("job-action", iterations=4)),
+                                          feedback_callback=lambda f: feedback.append(f.feedback.progress)))
+    assert gh.accepted
+    res = _wait(gh.get_result_async())
+    assert res.status == GoalStatus.STATUS_SUCCEEDED
+    assert res.result.assets.job_id == "job-action" and res.result.assets.error_code == AvatarAssets.ERROR_NONE
+    assert feedback and all(f.job_id == "job-action" for f in feedback)
+    its = [f.iteration for f in feedback if f.stage == "optimize"]
+    assert its == sorted(its) and its[-1] == 4
+    # the action's result is also published on the topic
+    assert cli.result_for("job-action").chamfer_final_cm == res.result.assets.chamfer_final_cm
+
+
+def test_action_cancel_and_responsiveness_during_a_job(setup_service):
+    """While the core runs (GIL released), parameter reads and an action cancel are answered
+    within 100 ms; the core then stops within one iteration and the goal ends CANCELED."""
+    runner = SphereFitRunner(repeat=400)  # ~0.1-0.5 s of core work per iteration
+    svc, cli = setup_service(runner)
+    assert cli.action.wait_for_server(timeout_sec=10)
+    gh = _wait(cli.action.send_goal_async(OptimizeAvatar.Goal(scan=_msg("job-long", iterations=1000))))
+    queued = _wait(cli.action.send_goal_async(OptimizeAvatar.Goal(scan=_msg("job-queued", iterations=2))))
+    assert runner.started.wait(10)
+    assert len(_wait(queued.cancel_goal_async(), 5).goals_canceling) == 1  # cancelled while waiting
+    res = _wait(queued.get_result_async(), 10)
+    assert res.status == GoalStatus.STATUS_CANCELED
+    assert res.result.assets.error_code == AvatarAssets.ERROR_CANCELLED and "before it started" in res.result.assets.error_msg
+    time.sleep(0.3)
+    params = cli.node.create_client(GetParameters, f"{NS}/get_parameters")
+    assert params.wait_for_service(timeout_sec=5)
+    latencies = []
+    for _ in range(10):
+        t0 = time.perf_counter()
+        r = _wait(params.call_async(GetParameters.Request(names=["queue_length", "output_dir"])), 5)
+        latencies.append(time.perf_counter() - t0)
+        assert r.values[0].integer_value == 8
+    assert svc.node.queue.current is not None and svc.node.queue.current.job_id == "job-long"
+    t0 = time.perf_counter()
+    cancel = _wait(gh.cancel_goal_async(), 5)
+    cancel_latency = time.perf_counter() - t0
+    assert len(cancel.goals_canceling) == 1
+    print(f"\nparameter read latency max {max(latencies) * 1e3:.1f} ms, median "
+          f"{sorted(latencies)[5] * 1e3:.1f} ms; action cancel answered in {cancel_latency * 1e3:.1f} ms")
+    assert max(latencies) <= 0.1 and cancel_latency <= 0.1
+    t0 = time.monotonic()
+    res = _wait(gh.get_result_async(), 10)
+    assert res.status == GoalStatus.STATUS_CANCELED
+    assert res.result.assets.error_code == AvatarAssets.ERROR_CANCELLED
+    assert time.monotonic() - t0 < 5.0
+    assert len(cli.progress_of("job-long")) < 1000
+
+
+def test_fifo_order_with_topic_cancel_in_the_middle(setup_service):
+    runner = SphereFitRunner(repeat=100)
+    svc, cli = setup_service(runner)
+    cli.send(_msg("q1", iterations=3))
+    cli.send(_msg("q2", iterations=1000))
+    cli.send(_msg("q3", iterations=3))
+    deadline = time.monotonic() + 20
+    while not [p for p in cli.progress_of("q2") if p.stage == "optimize"] and time.monotonic() < deadline:
+        time.sleep(0.01)
+    cli.cancel("q2")  # running
+    results = cli.wait_results(3)
+    assert [r.job_id for r in results] == ["q1", "q2", "q3"]
+    assert [r.error_code for r in results] == [AvatarAssets.ERROR_NONE, AvatarAssets.ERROR_CANCELLED,
+                                               AvatarAssets.ERROR_NONE]
+    # a queued job cancelled by topic never runs
+    cli.send(_msg("q4", iterations=1000))
+    cli.send(_msg("q5", iterations=3))
+    while svc.node.queue.get("q5") is None and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert svc.node.queue.get("q5").state.value == "queued"
+    cli.cancel("q5")
+    cli.cancel("q4")
+    results = cli.wait_results(5)
+    assert {r.job_id: r.error_code for r in results[3:]} == {"q4": AvatarAssets.ERROR_CANCELLED,
+                                                            "q5": AvatarAssets.ERROR_CANCELLED}
+    assert len(runner.scans) == 4  # q1, q2, q3, q4 ran; q5 was removed from the queue
+
+
+def test_full_queue_answers_an_error(setup_service):
+    runner = SphereFitRunner(repeat=100)
+    svc, cli = setup_service(runner, overrides=[Parameter("queue_length", value=1)])
+    cli.send(_msg("f1", iterations=1000))
+    assert runner.started.wait(10)
+    cli.send(_msg("f2", iterations=2))   # waits
+    cli.send(_msg("f3", iterations=2))   # queue full
+    full = cli.result_for("f3")
+    assert full.error_code == AvatarAssets.ERROR_QUEUE_FULL and "full" in full.error_msg
+    assert svc.node.queue.current.job_id == "f1"
+    cli.cancel("f1")
+    assert cli.result_for("f2").error_code == AvatarAssets.ERROR_NONE
+
+
+def _bad_cases():
+    V, F, L, names = small_scan()
+    good = dict(vertices=V.ravel(), faces=F.ravel(), labels=L, label_names=names)
+
+    def msg(job_id, **kw):
+        m = SegmentedScan(job_id=job_id, units="m", up_axis="y", iterations=2)
+        fields = {**good, **kw}
+        m.vertices = np.asarray(fields["vertices"], np.float32)
+        m.faces = np.asarray(fields["faces"], np.uint32)
+        m.labels = np.asarray(fields["labels"], np.uint8).tobytes()
+        m.label_names = fields["label_names"]
+        for k in ("units", "up_axis", "garment_type", "template_name"):
+            if k in kw:
+                setattr(m, k, kw[k])
+        return m
+
+    nan = V.ravel().copy()
+    nan[7] = np.nan
+    inf = V.ravel().copy()
+    inf[0] = np.inf
+    bad_face = F.ravel().copy()
+    bad_face[5] = len(V)
+    return [
+        ("empty", msg("empty", vertices=[], faces=[], labels=[]), "EMPTY_MESH", "no vertices"),
+        ("no_faces", msg("no_faces", faces=[]), "EMPTY_MESH", "no triangles"),
+        ("nan", msg("nan", vertices=nan), "NON_FINITE", "NaN or Inf"),
+        ("inf", msg("inf", vertices=inf), "NON_FINITE", "vertex 0"),
+        ("face_index", msg("face_index", faces=bad_face), "BAD_FACE_INDEX", f"[0, {len(V)})"),
+        ("faces_not_x3", msg("faces_not_x3", faces=F.ravel()[:-1]), "BAD_FACE_INDEX", "multiple of 3"),
+        ("vertices_not_x3", msg("vertices_not_x3", vertices=V.ravel()[:-2]), "BAD_VERTEX_ARRAY", "multiple of 3"),
+        ("labels_len", msg("labels_len", labels=L[:-1]), "BAD_LABELS", f"for {len(V)} vertices"),
+        ("labels_value", msg("labels_value", labels=np.full(len(V), 5)), "BAD_LABELS", "index label_names"),
+        ("no_garment", msg("no_garment", label_names=["body", "skin"]), "NO_GARMENT", "no vertex"),
+        ("garment_type", msg("garment_type", garment_type="spacesuit"), "UNKNOWN_GARMENT_TYPE", "spacesuit"),
+        ("template", msg("template", template_name="/nonexistent/t.obj"), "UNKNOWN_TEMPLATE", "does not exist"),
+        ("units", msg("units", units="furlong"), "BAD_OPTION", "units"),
+        ("up_axis", msg("up_axis", up_axis="w"), "BAD_OPTION", "up_axis"),
+        ("size_cm_as_m", msg("size_cm_as_m", vertices=V.ravel() * 100), "IMPLAUSIBLE_SIZE", "units"),
+        ("size_tiny", msg("size_tiny", vertices=V.ravel() * 1e-3), "IMPLAUSIBLE_SIZE", "plausible"),
+        ("degenerate", msg("degenerate", vertices=np.column_stack([V[:, 0], V[:, 0], V[:, 0]]).ravel()),
+         "IMPLAUSIBLE_SIZE", "degenerate"),
+        ("too_large", msg("too_large", vertices=np.tile(V.ravel(), 3), labels=np.tile(L, 3)), "TOO_LARGE", "limit"),
+    ]
+
+
+def test_bad_input_gets_its_error_code_and_the_node_keeps_running(setup_service):
+    V, F, L, names = small_scan()
+    svc, cli = setup_service(overrides=[Parameter("max_vertices", value=2 * len(V))])
+    cases = _bad_cases()
+    for _, m, _, _ in cases:
+        cli.send(m)
+    cli.send(_msg("good-after-bad", iterations=2))
+    results = cli.wait_results(len(cases) + 1)
+    by_id = {r.job_id: r for r in results}
+    for job_id, _, code, words in cases:
+        r = by_id[job_id]
+        assert r.error_code == getattr(AvatarAssets, f"ERROR_{code}"), (job_id, r.error_code, r.error_msg)
+        assert words in r.error_msg, (job_id, r.error_msg)
+        record = json.loads((pathlib.Path(r.output_dir) / "error.json").read_text())
+        assert record["error"] == code and record["message"] == r.error_msg
+    assert by_id["good-after-bad"].error_code == AvatarAssets.ERROR_NONE
+    assert len(svc.runner.scans) == 1  # only the good scan reached the runner
+
+
+def test_status_reports_queue_current_job_and_last_error(setup_service, client_context):
+    from diagnostic_msgs.msg import DiagnosticArray
+    runner = SphereFitRunner(repeat=100)
+    svc, cli = setup_service(runner, overrides=[])
+    got = []
+    cli.node.create_subscription(DiagnosticArray, f"{NS}/status", got.append, 10)
+    bad = _msg("bad")
+    bad.units = "mm"
+    cli.send(bad)
+    cli.result_for("bad")
+    cli.send(_msg("s1", iterations=1000))
+    cli.send(_msg("s2", iterations=2))
+    assert runner.started.wait(10)
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline:
+        vals = [{kv.key: kv.value for kv in a.status[0].values} for a in list(got)]
+        if any(v["current_job"] == "s1" and v["queue_length"] == "1" for v in vals):
+            break
+        time.sleep(0.05)
+    v = vals[-1]
+    assert v["current_job"] == "s1" and v["queue_length"] == "1" and v["last_error"].startswith("bad: BAD_OPTION")
+    cli.cancel("s1")
+    cli.result_for("s2")
+
+
+def test_parameters_from_a_params_file_validated_and_read_only(ros_context, tmp_path):
+    params = tmp_path / "node.yaml"
+    params.write_text("diffavatar_node:\n  ros__parameters:\n    queue_length: 3\n    result_history: 4\n"
+                      f"    output_dir: {tmp_path / 'o'}\n")
+    node = DiffAvatarNode(runner=SphereFitRunner(), context=ros_context,
+                          cli_args=["--ros-args", "--params-file", str(params)])
+    try:
+        assert node.get_parameter("queue_length").value == 3 and node.queue.max_length == 3
+        assert node.get_parameter("result_history").value == 4
+        assert node.get_parameter("default_iterations").value == 30  # config/diffavatar.yaml default
+        d = node.describe_parameter("queue_length")
+        assert (d.integer_range[0].from_value, d.integer_range[0].to_value) == (1, 1000) and d.description
+
+        def set1(name, value):
+            return node.set_parameters([Parameter(name, value=value)])[0]
+
+        assert not set1("queue_length", 0).successful            # range
+        assert not set1("status_period_s", 5.0).successful       # read-only
+        assert not set1("threads", 1).successful                 # read-only
+        assert not set1("result_history", 2).successful          # read-only (fixed QoS)
+        assert not set1("output_dir", "  ").successful           # validated
+        assert not set1("queue_length", "many").successful       # type
+        assert set1("queue_length", 5).successful and node.queue.max_length == 5  # applies to new submissions
+        assert set1("max_vertices", 10).successful
+        job = node.submit(_msg("over-limit"))  # parameters are fixed per job at submission
+        assert job.done.wait(10) and job.result_msg.error_code == AvatarAssets.ERROR_TOO_LARGE
+    finally:
+        node.destroy_node()
+    with pytest.raises(Exception):
+        DiffAvatarNode(runner=SphereFitRunner(), context=ros_context,
+                       parameter_overrides=[Parameter("queue_length", value=0)])
+
+
+SENDER = r"""
+import sys, time
+sys.path.insert(0, sys.argv[1])
+import numpy as np
+import rclpy
+from diffavatar_ros.node import SCAN_QOS, result_qos  # also selects the large-data transport
+from diffavatar_msgs.msg import SegmentedScan, AvatarAssets
+from diffavatar_ros import convert
+from service_helpers import grid_sphere
+rclpy.init(domain_id=int(sys.argv[2]))
+node = rclpy.create_node("remote_sender")
+V, F = grid_sphere(400, 500, radius=0.5, noise=0.001, seed=7)
+msg = convert.scan_to_msg(V, F, None, [], garment_type="dress", job_id="big", iterations=2)
+done = []
+node.create_subscription(AvatarAssets, "/diffavatar_node/result", lambda m: done.append(m), result_qos(10))
+pub = node.create_publisher(SegmentedScan, "/diffavatar_node/scans", SCAN_QOS)
+deadline = time.monotonic() + 60
+while pub.get_subscription_count() == 0 and time.monotonic() < deadline:
+    rclpy.spin_once(node, timeout_sec=0.05)
+pub.publish(msg)
+while not any(m.job_id == "big" for m in done) and time.monotonic() < deadline:
+    rclpy.spin_once(node, timeout_sec=0.1)
+r = [m for m in done if m.job_id == "big"]
+print("RESULT", r[0].error_code if r else "none", r[0].error_msg if r else "", flush=True)
+"""
+
+
+def test_200k_vertex_scan_from_another_process_arrives_intact(ros_domain, ros_context, tmp_path):
+    assert os.environ[LARGE_DATA_ENV] == "LARGE_DATA"
+    runner = SphereFitRunner()
+    svc = Service(ros_context, runner, [Parameter("output_dir", value=str(tmp_path / "out"))])
+    try:
+        env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(HERE), os.environ.get("PYTHONPATH", "")])}
+        env.pop(LARGE_DATA_ENV, None)  # the sender selects it itself by importing the node module
+        proc = subprocess.run([sys.executable, "-c", SENDER, str(HERE), str(ros_domain)], env=env,
+                              capture_output=True, text=True, timeout=90)
+        assert "RESULT 0" in proc.stdout, proc.stdout + proc.stderr
+        V, F = grid_sphere(400, 500, radius=0.5, noise=0.001, seed=7)
+        assert len(V) == 200_000
+        got = runner.scans[-1]
+        np.testing.assert_array_equal(got.vertices, V.astype(np.float64))  # bit-exact (m, Y up)
+        np.testing.assert_array_equal(got.faces, F.astype(np.int32))
+        assert got.garment_type == "dress" and got.garment_mask.all()
+    finally:
+        svc.close()
+
+
+def test_entry_point_runs_the_node_in_its_own_process(ros_domain, ros_context, tmp_path):
+    """`python -m diffavatar_ros --ros-args --params-file F` as a real second process: it loads
+    the parameters, answers a bad scan with its error, and exits cleanly on SIGINT."""
+    import signal
+    params = tmp_path / "node.yaml"
+    params.write_text(f"/**:\n  ros__parameters:\n    queue_length: 5\n    output_dir: {tmp_path / 'o'}\n")
+    env = {**os.environ, "ROS_DOMAIN_ID": str(ros_domain)}
+    proc = subprocess.Popen([sys.executable, "-m", "diffavatar_ros", "--ros-args", "--params-file", str(params)],
+                            env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    cli = Client(ros_context)
+    try:
+        cli.wait_matched(timeout=30)
+        params_cli = cli.node.create_client(GetParameters, f"{NS}/get_parameters")
+        assert params_cli.wait_for_service(timeout_sec=10)
+        r = _wait(params_cli.call_async(GetParameters.Request(names=["queue_length", "result_history"])), 10)
+        assert [v.integer_value for v in r.values] == [5, 10]
+        bad = _msg("remote-bad")
+        bad.faces = bad.faces[:-1]
+        cli.send(bad)
+        res = cli.result_for("remote-bad")
+        assert res.error_code == AvatarAssets.ERROR_BAD_FACE_INDEX and "multiple of 3" in res.error_msg
+        assert (tmp_path / "o" / "remote-bad" / "error.json").exists()
+    finally:
+        cli.close()
+        proc.send_signal(signal.SIGINT)
+        out = proc.communicate(timeout=20)[0]
+    assert proc.returncode == 0, out
+    assert "FASTDDS_BUILTIN_TRANSPORTS=LARGE_DATA" in out
+
+
+def test_entry_point_rejects_invalid_parameters(tmp_path):
+    params = tmp_path / "bad.yaml"
+    params.write_text("/**:\n  ros__parameters:\n    output_dir: ''\n")
+    proc = subprocess.run([sys.executable, "-m", "diffavatar_ros", "--ros-args", "--params-file", str(params)],
+                          capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 2 and "output_dir" in proc.stdout + proc.stderr
+
+
+def _garbage_string(rng):
+    kind = rng.integers(4)
+    if kind == 0:
+        return ""
+    if kind == 1:
+        return "".join(chr(c) for c in rng.integers(0x20, 0x2FF, size=rng.integers(1, 40)))
+    if kind == 2:
+        return "x" * int(rng.integers(1000, 20000))
+    return str(rng.choice(["mm", "yz", "-y", "none", "../../etc/passwd", "dress\x00"]))
+
+
+def _fuzz_scan(rng, i):
+    """A scan with at least one real defect plus random garbage in other fields."""
+    V, F, L, names = small_scan(seed=int(rng.integers(1 << 30)))
+    v, f, lab, nm = V.ravel().copy(), F.ravel().copy(), L.copy(), list(names)
+    fields = {"units": "m", "up_axis": "y", "garment_type": "", "template_name": ""}
+    choice = int(rng.integers(13))
+    if choice == 0:
+        v = rng.normal(size=3 * int(rng.integers(0, 1000)) + int(rng.integers(1, 3))).astype(np.float32)
+    elif choice == 1:
+        v[rng.integers(len(v), size=int(rng.integers(1, 20)))] = rng.choice([np.nan, np.inf, -np.inf])
+    elif choice == 2:
+        f[rng.integers(len(f), size=int(rng.integers(1, 20)))] = rng.integers(len(V), 2**32, dtype=np.uint64)
+    elif choice == 3:
+        n = int(rng.integers(1, 2 * len(V)))
+        lab = rng.integers(0, 2, size=n if n != len(V) else n + 1).astype(np.uint8)
+    elif choice == 4:
+        fields["units"] = _garbage_string(rng) or "furlong"
+    elif choice == 5:
+        fields["up_axis"] = _garbage_string(rng) or "w"
+    elif choice == 6:
+        fields["garment_type"] = (_garbage_string(rng) or "cape") + "?"
+    elif choice == 7:
+        v = v * np.float32(10.0 ** rng.choice([-4, -3, 2, 3, 5]))
+    elif choice == 8:
+        v, f, lab = np.zeros(0, np.float32), np.zeros(0, np.uint32), np.zeros(0, np.uint8)
+    elif choice == 9:
+        v = np.repeat(v[0::3], 3) * np.tile(np.float32([1, 2, 3]), len(V))
+    elif choice == 10:
+        lab = rng.integers(len(nm), 256, size=len(V)).astype(np.uint8)
+    elif choice == 11:
+        fields["template_name"] = f"/nonexistent/{rng.integers(1 << 20)}/t.obj"
+    else:
+        f = f[: len(f) - int(rng.integers(1, 3))]
+    if rng.random() < 0.5:  # garbage elsewhere, too
+        nm = [_garbage_string(rng) for _ in range(int(rng.integers(0, 5)))] or nm
+    m = SegmentedScan(job_id=f"fuzz-{i}", iterations=int(rng.integers(0, 3)), **fields)
+    m.vertices, m.faces = np.asarray(v, np.float32), np.asarray(f, np.uint32)
+    m.labels, m.label_names = np.asarray(lab, np.uint8).tobytes(), nm
+    return m
+
+
+def test_fuzz_1000_malformed_scans_then_a_good_one(setup_service, tmp_path):
+    svc, cli = setup_service(overrides=[Parameter("queue_length", value=1000)])
+    rng = np.random.default_rng(2024)
+    n = 1000
+    for i in range(n):
+        cli.send(_fuzz_scan(rng, i))
+    cli.send(_msg("good-after-fuzz", iterations=2))
+    assert cli.result_for("good-after-fuzz", timeout=60).error_code == AvatarAssets.ERROR_NONE
+    codes = {}
+    for i in range(n):  # every bad scan was answered with an error, recorded on disk
+        rec = json.loads((tmp_path / "out" / f"fuzz-{i}" / "error.json").read_text())
+        assert rec["error_code"] not in (AvatarAssets.ERROR_NONE, AvatarAssets.ERROR_INTERNAL), rec
+        codes[rec["error"]] = codes.get(rec["error"], 0) + 1
+    assert len(codes) >= 9, codes
+    assert len(svc.runner.scans) == 1
+
+
+def test_duplicate_job_id_is_refused_and_a_rerun_replaces_the_record(setup_service, tmp_path):
+    runner = SphereFitRunner(repeat=100)
+    svc, cli = setup_service(runner)
+    bad = _msg("same")
+    bad.units = "mm"
+    cli.send(bad)
+    assert cli.result_for("same").error_code == AvatarAssets.ERROR_BAD_OPTION
+    out = tmp_path / "out" / "same"
+    assert (out / "error.json").exists()
+    cli.results.clear()
+    cli.send(_msg("same", iterations=1000))
+    assert runner.started.wait(10)
+    cli.send(_msg("same", iterations=2))  # while the first runs
+    dup = cli.result_for("same")
+    assert dup.error_code == AvatarAssets.ERROR_BAD_OPTION and "already queued or running" in dup.error_msg
+    assert dup.output_dir == ""  # not written into the running job's directory
+    assert json.loads((out / "error.json").read_text())["error"] == "BAD_OPTION"  # still the first run's
+    cli.cancel("same")
+    deadline = time.monotonic() + 10
+    while len(cli.results) < 2 and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert cli.results[1].error_code == AvatarAssets.ERROR_CANCELLED
+    cli.results.clear()
+    cli.send(_msg("same", iterations=2))
+    assert cli.result_for("same").error_code == AvatarAssets.ERROR_NONE
+    assert (out / "result.json").exists() and not (out / "error.json").exists()

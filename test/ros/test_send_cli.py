@@ -1,0 +1,91 @@
+"""`diffavatar send` as a second OS process against the node (real DDS between processes):
+a batch directory with a labelled PLY scan, a garment-only OBJ scan and a bad file; results
+written as the CLI's files, the bad file reported before sending."""
+import json
+import os
+import pathlib
+import subprocess
+import sys
+
+import numpy as np
+from rclpy.executors import MultiThreadedExecutor
+from rclpy.parameter import Parameter
+
+from diffavatar_core.io import load_mesh, save_mesh
+from diffavatar_ros.node import DiffAvatarNode
+from service_helpers import SphereFitRunner, small_scan
+
+
+def _write_labelled_ply(path, V, F, labels):
+    with open(path, "w") as fh:
+        fh.write(f"ply\nformat ascii 1.0\nelement vertex {len(V)}\nproperty float x\nproperty float y\n"
+                 f"property float z\nproperty uchar label\nelement face {len(F)}\n"
+                 "property list uchar int vertex_indices\nend_header\n")
+        for (x, y, z), lab in zip(V, labels):
+            fh.write(f"{float(x)!r} {float(y)!r} {float(z)!r} {int(lab)}\n")
+        for a, b, c in F:
+            fh.write(f"3 {a} {b} {c}\n")
+
+
+def _send(domain, *args):
+    env = {**os.environ, "ROS_DOMAIN_ID": str(domain)}
+    return subprocess.run([sys.executable, "-m", "diffavatar_core", "send", *map(str, args)], env=env,
+                          capture_output=True, text=True, timeout=120)
+
+
+def test_send_batch_directory_and_action(ros_domain, ros_context, tmp_path):
+    V, F, L, _ = small_scan()
+    batch = tmp_path / "batch"
+    batch.mkdir()
+    _write_labelled_ply(batch / "a_person.ply", V, F, L)
+    save_mesh(batch / "b_bad.obj", V * 1000, F)  # millimetres sent as metres
+    runner = SphereFitRunner()
+    node = DiffAvatarNode(runner=runner, context=ros_context,
+                          parameter_overrides=[Parameter("output_dir", value=str(tmp_path / "node_out"))])
+    ex = MultiThreadedExecutor(num_threads=4, context=ros_context)
+    ex.add_node(node)
+    import threading
+    threading.Thread(target=ex.spin, daemon=True).start()
+    try:
+        out = tmp_path / "client_out"
+        proc = _send(ros_domain, batch, "--label-names", "body,tshirt", "--iterations", 3, "--out", out)
+        assert proc.returncode == 1, proc.stdout + proc.stderr  # one bad file
+        dirs = {d.name.rsplit("-", 1)[0]: d for d in out.iterdir()}
+        assert set(dirs) == {"a_person", "b_bad"}
+        err = json.loads((dirs["b_bad"] / "error.json").read_text())
+        assert err["error"] == "IMPLAUSIBLE_SIZE" and "not sent" in proc.stdout
+        assert len(runner.scans) == 1 and runner.scans[0].garment_type == "tshirt", proc.stdout + proc.stderr
+        np.testing.assert_array_equal(runner.scans[0].garment_mask, L == 1)  # labels travelled
+        assert "optimize 3/3" in proc.stderr  # progress shown
+
+        # the client's files match the node's own record of the same job
+        job_id = dirs["a_person"].name
+        mine, theirs = dirs["a_person"], tmp_path / "node_out" / job_id
+        a, b = json.loads((mine / "result.json").read_text()), json.loads((theirs / "result.json").read_text())
+        assert [h["value"] for h in a["loss_history"]] == [h["value"] for h in b["loss_history"]]
+        assert a["iterations"] == b["iterations"] == 3 and a["pattern"] == b["pattern"]
+        for name in ("garment_draped.obj", "garment_rest.obj"):
+            Va, Fa = load_mesh(mine / name)
+            Vb, Fb = load_mesh(theirs / name)
+            np.testing.assert_allclose(Va, Vb, rtol=1e-6, atol=1e-7)
+            np.testing.assert_array_equal(Fa, Fb)
+        assert (mine / "loss.png").stat().st_size > 0
+
+        # the action path, garment-only OBJ in cm with Z up
+        Vz = np.column_stack([V[:, 0], -V[:, 2], V[:, 1]]) * 100
+        save_mesh(tmp_path / "garment.obj", Vz, F)
+        proc = _send(ros_domain, tmp_path / "garment.obj", "--garment", "dress", "--units", "cm", "--up", "z",
+                     "--iterations", 2, "--action", "--quiet", "--out", out)
+        assert proc.returncode == 0, proc.stdout + proc.stderr
+        assert "garment-" in proc.stdout and ": ok" in proc.stdout and proc.stderr.count("optimize") == 0
+        np.testing.assert_allclose(runner.scans[-1].vertices, V, atol=1e-6)  # converted to m, Y up
+    finally:
+        node.destroy_node()
+        ex.shutdown()
+
+
+def test_send_without_a_node_says_so(ros_domain, tmp_path):
+    V, F, _, _ = small_scan()
+    save_mesh(tmp_path / "s.obj", V, F)
+    proc = _send(ros_domain, tmp_path / "s.obj", "--garment", "dress", "--wait", 1, "--out", tmp_path / "o")
+    assert proc.returncode == 1 and "no /diffavatar_node found" in proc.stdout
