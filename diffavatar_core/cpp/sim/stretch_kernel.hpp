@@ -6,6 +6,7 @@
 // α̃ = diag(α)/Ā; α in m/N (inverse 2D stiffness), Ā the rest area (m²), U in J.
 #pragma once
 #include <Eigen/Dense>
+#include <Eigen/LU>
 #include <array>
 
 #include "autodiff/jet.hpp"
@@ -82,7 +83,7 @@ inline void project_stretch(Vec3* p[3], const double w[3], const StretchRest& r,
     }
   Vec3 lam(lambda[0], lambda[1], lambda[2]);
   Vec3 rhs = -(C + alpha_tilde.cwiseProduct(lam));
-  Vec3 dl = A.ldlt().solve(rhs);
+  Vec3 dl = A.inverse() * rhs;  // SPD 3×3: closed-form cofactor inverse
   for (int a = 0; a < 3; ++a) lambda[a] += dl[a];
   for (int k = 0; k < 3; ++k) {
     if (w[k] == 0.0) continue;
