@@ -17,13 +17,18 @@ class Placement:
 
         x(u, v) = origin + R sin θ · ex + (v − v0) · ey − R (1 − cos θ) · (ex × ey),  θ = (u − u0)/R
 
-    (R = inf: the flat sheet origin + (u − u0) ex + (v − v0) ey). ex, ey: orthonormal (3,)."""
+    (R = inf: the flat sheet origin + (u − u0) ex + (v − v0) ey). ex, ey: orthonormal (3,).
+    Optional fold over the shoulders: above v − v0 = fold_at the sheet bends backwards (−ex×ey)
+    around a horizontal axis of radius fold_radius: the length s beyond fold_at goes to height
+    fold_at + r sin(s/r) and depth r (1 − cos(s/r)) (s/r capped at 90°)."""
     origin: np.ndarray
     ex: np.ndarray
     ey: np.ndarray
     u0: float = 0.0
     v0: float = 0.0
     radius: float = np.inf
+    fold_at: float = np.inf
+    fold_radius: float = 0.2
 
     def __call__(self, uv: np.ndarray) -> np.ndarray:
         ex = np.asarray(self.ex, float) / np.linalg.norm(self.ex)
@@ -38,6 +43,13 @@ class Placement:
         else:
             R = float(self.radius)
             a, c = R * np.sin(u / R), R * (1.0 - np.cos(u / R))
+        if np.isfinite(self.fold_at):
+            r = float(self.fold_radius)
+            sv = np.clip(v - self.fold_at, 0.0, None)
+            phi = np.minimum(sv / r, np.pi / 2)
+            extra = sv - phi * r                     # beyond a quarter turn: straight back
+            v = np.where(sv > 0, self.fold_at + r * np.sin(phi), v)
+            c = c + np.where(sv > 0, r * (1 - np.cos(phi)) + extra, 0.0)
         return np.asarray(self.origin, float)[None, :] + a[:, None] * ex + v[:, None] * ey - c[:, None] * n
 
 
