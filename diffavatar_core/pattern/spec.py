@@ -74,6 +74,9 @@ class PanelSpec:
         if ctrl is None:
             t = np.linspace(0, 1, n + 1)
             return a + t[:, None] * (b - a)
+        if isinstance(ctrl, Arc):
+            t = np.linspace(0, 1, n + 1)
+            return ctrl.points(t)
         P = np.vstack([a, np.asarray(ctrl, float).reshape(-1, 2), b])
         dense = bezier(P, np.linspace(0, 1, 64 * n + 1))
         s = np.concatenate([[0], np.cumsum(np.linalg.norm(np.diff(dense, axis=0), axis=1))])
@@ -84,6 +87,19 @@ class PanelSpec:
     def edge_length(self, k: int) -> float:
         pts = self.edge_polyline(k, 64)
         return float(np.linalg.norm(np.diff(pts, axis=0), axis=1).sum())
+
+
+@dataclass
+class Arc:
+    """A circular arc edge: centre (2,) m, radius m, from angle a0 to a1 (rad, signed sweep)."""
+    center: np.ndarray
+    radius: float
+    a0: float
+    a1: float
+
+    def points(self, t: np.ndarray) -> np.ndarray:
+        ang = self.a0 + (self.a1 - self.a0) * np.asarray(t, float)
+        return np.asarray(self.center, float) + self.radius * np.column_stack([np.cos(ang), np.sin(ang)])
 
 
 def bezier(P: np.ndarray, t: np.ndarray) -> np.ndarray:

@@ -64,6 +64,10 @@ def _delaunay_inside(X: np.ndarray, boundary: np.ndarray):
     boundary points can lie outside (when every boundary segment is a Delaunay edge)."""
     nb = len(boundary)
     tri = Delaunay(X).simplices.astype(np.int64)
+    a, b, c = X[tri[:, 0]], X[tri[:, 1]], X[tri[:, 2]]
+    cross = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
+    scale2 = np.sum((b - a) ** 2, 1) + np.sum((c - a) ** 2, 1)
+    tri = tri[np.abs(cross) > 1e-12 * scale2]          # flat slivers of collinear boundary points
     allb = np.all(tri < nb, axis=1)
     keep = np.ones(len(tri), bool)
     if np.any(allb):
