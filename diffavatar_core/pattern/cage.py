@@ -57,15 +57,28 @@ class ControlCage:
         return np.asarray(self.W.T @ G)
 
 
-def build_cage(g: Garment, angle_threshold_deg: float = 10.0) -> ControlCage:
-    """The control cage of every panel of g and its mean value coordinates."""
+def build_cage(g: Garment, angle_threshold_deg: float = 10.0, seam_consistent: bool = True) -> ControlCage:
+    """The control cage of every panel of g and its mean value coordinates. With
+    seam_consistent, a vertex sewn to a handle is a handle too (repeated until stable), so the
+    two sides of a seam are cut into the same pieces and deform together."""
+    is_handle = np.zeros(len(g.rest), bool)
+    for info in g.panels:
+        is_handle[info.loop[cage_handles(g.rest[info.loop], angle_threshold_deg)]] = True
+    if seam_consistent and len(g.seams):
+        while True:
+            a, b = g.seams[:, 0], g.seams[:, 1]
+            new = is_handle.copy()
+            new[b[is_handle[a]]] = True
+            new[a[is_handle[b]]] = True
+            if np.array_equal(new, is_handle):
+                break
+            is_handle = new
     rows, cols, vals, handles, hpanel = [], [], [], [], []
     start = g.panel_vertex_start
     h0 = 0
     for p, info in enumerate(g.panels):
         loop = info.loop
-        local = cage_handles(g.rest[loop], angle_threshold_deg)
-        hv = loop[local]
+        hv = loop[is_handle[loop]]
         verts = np.arange(start[p], start[p + 1])
         Wp = mean_value_coordinates(g.rest[hv], g.rest[verts])
         r, c = np.nonzero(Wp)

@@ -78,3 +78,14 @@ def test_garment_cage_reproduces_the_pattern_and_maps_gradients():
     lm = np.sum(C * cage.rest(Z))
     assert abs((lp - lm) / (2 * eps) - gz[k, 0]) <= 1e-6 * max(1.0, abs(gz[k, 0]))
     assert set(np.unique(cage.handle_panel)) == {0, 1}
+
+
+def test_seam_partners_of_handles_are_handles():
+    from diffavatar_core.pattern.templates import make_template
+    g = make_template("tshirt", edge_length=0.04)
+    cage = build_cage(g)
+    h = np.zeros(len(g.rest), bool)
+    h[cage.handles] = True
+    assert np.array_equal(h[g.seams[:, 0]], h[g.seams[:, 1]])
+    assert np.max(np.abs(cage.rest(cage.zeta0) - g.rest)) <= 1e-9 * np.abs(g.rest).max()
+    assert len(cage.handles) < sum(len(p.loop) for p in g.panels)
