@@ -153,3 +153,13 @@ def write_all(out_dir, g: Garment, handles=None) -> dict:
     save_png(paths["png"], g, handles)
     save_rest_obj(paths["obj"], g)
     return {k: str(v) for k, v in paths.items()}
+
+
+def pattern_assets(g: Garment, handles=None):
+    """The pipeline's PatternAssets (pipeline/result.py) of a garment and its cage handles."""
+    from ..pipeline.result import PatternAssets
+    return PatternAssets(rest_xy=g.rest.copy(), triangles=g.faces.copy(),
+                         panel_vertex_start=g.panel_vertex_start, panel_names=g.panel_names,
+                         panel_grain_rad=np.array([p.grain for p in g.panels], float),
+                         seam_pairs=g.seams.copy(),
+                         handles=np.zeros(0, np.int32) if handles is None else np.asarray(handles, np.int32))

@@ -57,3 +57,14 @@ def test_cli(tmp_path, capsys):
     assert out["panels"] == ["front", "back"] and (tmp_path / "pattern.png").exists()
     assert main(["pattern", "--out", str(tmp_path)]) == 2
     assert main(["pattern", "kilt", "--out", str(tmp_path)]) == 2
+
+
+def test_pattern_assets(skirt):
+    from diffavatar_core.pattern.export import pattern_assets
+    cage = build_cage(skirt)
+    a = pattern_assets(skirt, cage.handles)
+    start = a.panel_vertex_start
+    assert start[0] == 0 and start[-1] == len(a.rest_xy) and len(start) == len(a.panel_names) + 1
+    for p in range(len(a.panel_names)):
+        assert np.all(skirt.panel[start[p]:start[p + 1]] == p)
+    assert np.array_equal(a.seam_pairs, skirt.seams) and np.array_equal(a.handles, cage.handles)
