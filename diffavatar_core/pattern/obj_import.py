@@ -19,6 +19,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from .garment import Garment, PanelInfo
+from .spec import _UnionFind
 
 
 def _read_obj(path):
@@ -166,30 +167,10 @@ def load_obj_pattern(path, units_in_meter: float | None = None, min_area_fractio
 def _name_openings(g: Garment) -> dict:
     """Names the openings of an assembled top (Y up): the lowest is the hem, the highest the
     neckline, the others sleeves by side (+X is the body's left). Other garments: {}."""
-    sewn = np.zeros(len(g.rest), bool)
-    sewn[g.seams.ravel()] = True
-    # chains of unsewn boundary vertices per panel, welded across panels at sewn corners
-    weld = {}
+    weld = _UnionFind(len(g.rest))
     for a, b in g.seams:
-        ra, rb = weld.get(int(a), int(a)), weld.get(int(b), int(b))
-        r = min(ra, rb)
-        for v in (int(a), int(b), ra, rb):
-            weld[v] = r
-    def root(v):
-        while weld.get(v, v) != v:
-            v = weld[v]
-        return v
-    adj = {}
-    for p in g.panels:
-        L = p.loop
-        for a, b in zip(L, np.roll(L, -1)):
-            a, b = int(a), int(b)
-            if sewn[a] and sewn[b] and root(a) != root(b):
-                # both ends sewn: an opening edge only if the edge itself is not sewn
-                pass
-            ra, rb = root(a), root(b)
-            adj.setdefault(ra, set()).add(rb)
-            adj.setdefault(rb, set()).add(ra)
+        weld.union(int(a), int(b))
+    root = weld.find
     # an edge belongs to an opening when no other panel has the same welded edge
     count = {}
     for p in g.panels:
