@@ -13,6 +13,7 @@ void bind_geometry(py::module_& m);
 void bind_loss(py::module_& m);
 void bind_sim(py::module_& m);
 void bind_render(py::module_& m);
+void bind_pattern(py::module_& m);
 }  // namespace diffavatar
 
 PYBIND11_MODULE(_core, m) {
@@ -22,6 +23,7 @@ PYBIND11_MODULE(_core, m) {
   diffavatar::bind_loss(m);
   diffavatar::bind_sim(m);
   diffavatar::bind_render(m);
+  diffavatar::bind_pattern(m);
   m.def("openmp_max_threads", []() {
 #ifdef _OPENMP
     return omp_get_max_threads();
