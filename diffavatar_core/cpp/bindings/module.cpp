@@ -11,6 +11,7 @@ namespace diffavatar {
 void bind_common(py::module_& m);
 void bind_geometry(py::module_& m);
 void bind_loss(py::module_& m);
+void bind_body(py::module_& m);
 }  // namespace diffavatar
 
 PYBIND11_MODULE(_core, m) {
@@ -18,6 +19,7 @@ PYBIND11_MODULE(_core, m) {
   diffavatar::bind_common(m);
   diffavatar::bind_geometry(m);
   diffavatar::bind_loss(m);
+  diffavatar::bind_body(m);
   m.def("openmp_max_threads", []() {
 #ifdef _OPENMP
     return omp_get_max_threads();
