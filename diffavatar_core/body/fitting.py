@@ -18,8 +18,8 @@ extent and horizontal principal axes (four yaw candidates, the best after a rigi
 
 Garment-only scans (the body is not visible): the garment is a shell around the body, so
   E_g = 1/M Σ_i w_i (d_i − c)²,  d_i = n_i·(p_i − x_i) the signed garment-to-body distance,
-with full weight where the garment is inside the clearance c (d_i < c: the body pokes
-through or is too close) and Geman–McClure weight where it is outside (loose regions such as
+with weight κ = penetration_weight where the garment is inside the clearance c (d_i < c: the
+body pokes through or is too close) and Geman–McClure weight where it is outside (loose regions such as
 a skirt do not pull the body out); bone scales are held at 1 and the priors are stronger, so
 the uncovered parts of the body stay plausible.
 """
@@ -66,6 +66,7 @@ class FitOptions:
     bone_scale_range: tuple = (0.85, 1.2)
     shape_range: float = 3.5             # |ν_k| ≤ this
     clearance: float = 0.01              # garment-only: target body-to-garment gap (m)
+    penetration_weight: float = 10.0     # garment-only: weight of gaps below the clearance
     garment_shape_prior: float = 2e-6
     garment_pose_prior: float = 5e-5
     seed: int = 0
@@ -130,8 +131,9 @@ class _Fitter:
         rows, res, wts, rho = [], [], [], 0.0
         if self.garment:
             r1 = d - o.clearance
-            w1 = np.where(r1 < 0, 1.0, _gm_weight(r1, sigma))
-            rho += float(np.sum(np.where(r1 < 0, r1 * r1, _gm_rho(r1, sigma)))) / len(S)
+            kin = o.penetration_weight
+            w1 = np.where(r1 < 0, kin, _gm_weight(r1, sigma))
+            rho += float(np.sum(np.where(r1 < 0, kin * r1 * r1, _gm_rho(r1, sigma)))) / len(S)
             res.append(-r1)                                  # n·(x − p) + c
             wts.append(w1 / len(S))
         else:

@@ -65,3 +65,39 @@ def test_full_scan_round_trip(model, seed):
     assert err.mean() <= 0.01, err.mean()
     assert np.all(res.params.pose >= model.limits_lo) and np.all(res.params.pose <= model.limits_hi)
     assert res.rms < 0.005
+
+
+def _vertex_normals(X, F):
+    fn = np.cross(X[F[:, 1]] - X[F[:, 0]], X[F[:, 2]] - X[F[:, 0]])
+    vn = np.zeros_like(X)
+    for k in range(3):
+        np.add.at(vn, F[:, k], fn)
+    return vn / np.linalg.norm(vn, axis=1, keepdims=True)
+
+
+def torso_garment(model, X, offset):
+    """A top made by offsetting the posed body's torso surface (pelvis to clavicles) outward."""
+    torso = [model.joint_index(n) for n in
+             ["pelvis", "spine_1", "spine_2", "spine_3", "spine_4", "chest", "clavicle_left", "clavicle_right"]]
+    inside = np.isin(np.argmax(model.weights, axis=1), torso)
+    F = model.faces[inside[model.faces].all(axis=1)]
+    used = np.unique(F)
+    remap = -np.ones(model.num_vertices, np.int64)
+    remap[used] = np.arange(len(used))
+    return X[used] + offset * _vertex_normals(X, model.faces)[used], remap[F]
+
+
+def test_garment_only_fit_puts_the_body_inside(model):
+    rng = np.random.default_rng(2)
+    truth = random_body(model, rng, pose_sd=0.08)
+    X = model.pose(truth)
+    G, Fg = torso_garment(model, X, offset=0.01)          # 1 cm clearance, as the default
+    R = Rotation.from_rotvec([0, rng.uniform(-np.pi, np.pi), 0]).as_matrix()
+    t = rng.normal(scale=0.5, size=3)
+    Gw, Xw = G @ R.T + t, X @ R.T + t
+    res = fit_body(100 * Gw @ ZUP.T, Fg, model=model, units="cm", up="z", garment_only=True)
+    assert inside_fraction(model, res.params, Gw) <= 0.01
+    Xf = model.pose(res.params)
+    height = lambda V: V[:, 1].max() - V[:, 1].min()  # noqa: E731
+    assert abs(height(Xf) - height(Xw)) <= 0.03
+    np.testing.assert_array_equal(res.params.bone_scales, 1.0)     # held in garment-only mode
