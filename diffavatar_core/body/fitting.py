@@ -10,11 +10,18 @@ Energy (all lengths in m, after the scan is brought into the core's frame):
                                                      body face normal
        + β/B Σ_v ρ_σb(|x_v(θ) − q_v|)                body → scan: q_v the closest scan point
                                                      (surface when the scan has faces)
+       + γ/Q Σ_u min(0, n_u·(x_u(θ) − y_u(θ)))²      self-penetration, in the last iterations:
+                                                     forearm/hand vertices x_u against the torso
+                                                     surface, lower-leg vertices against the
+                                                     other leg (y_u the closest point there, n_u
+                                                     its normal)
        + α_ν |ν|² + α_ψ |ψ|² + α_s |s − 1|²          priors (ν ~ N(0, I))
 ρ_σ is Geman–McClure, minimised by iteratively reweighted least squares
 (w = σ⁴ / (σ² + r²)²), so holes and floating fragments (residuals ≫ σ) are ignored; σ is
-annealed from coarse to fine, and σ_b = σ/2 so that body vertices over a hole let go early. The global transform is initialised from the scan's robust
-extent and horizontal principal axes (four yaw candidates, the best after a rigid pre-fit).
+annealed from coarse to fine, and σ_b = σ/2 so that body vertices over a hole let go early.
+The global transform is initialised from the scan's robust
+extent and horizontal principal axes (twelve yaw candidates; the three best are refined
+rigidly with the stature coefficient, and the best of those starts the full fit).
 
 Garment-only scans (the body is not visible): the garment is a shell around the body, so
   E_g = 1/M Σ_i w_i (d_i − c)²,  d_i = n_i·(p_i − x_i) the signed garment-to-body distance,
@@ -65,6 +72,9 @@ class FitOptions:
     scale_prior: float = 2e-5            # α_s (m² per unit of scale²)
     bone_scale_range: tuple = (0.85, 1.2)
     shape_range: float = 3.5             # |ν_k| ≤ this
+    self_penetration_weight: float = 1.0  # γ
+    self_penetration_samples: int = 300  # vertices per part pair and iteration
+    self_penetration_iterations: int = 12  # the term is active in the last iterations only
     clearance: float = 0.01              # garment-only: target body-to-garment gap (m)
     penetration_weight: float = 10.0     # garment-only: weight of gaps below the clearance
     garment_shape_prior: float = 2e-6
@@ -118,6 +128,9 @@ class _Fitter:
         self.sl = sl
         self.K, self.J = K, J
         self.pose_boost = 1.0
+        self.pen_pairs = penetration_pairs(model)
+        self.pen_on = 0.0
+        self.pen_rng = np.random.default_rng(opts.seed + 1)
 
     # -- residuals and their Jacobians at θ ------------------------------------------------------
     def _terms(self, p: BodyParams, sigma: float, idx_scan, idx_body, with_jac: bool):
@@ -162,6 +175,23 @@ class _Fitter:
             rho += beta * float(np.sum(_gm_rho(dist, sb)))
             if with_jac:
                 rows.append(Jall[idx_body].reshape(-1, m.num_params))
+        gamma = o.self_penetration_weight * self.pen_on
+        for verts, faces in (self.pen_pairs if gamma > 0 else []):
+            u = verts if len(verts) <= o.self_penetration_samples else \
+                self.pen_rng.choice(verts, o.self_penetration_samples, replace=False)
+            t2, b2, c2 = _core.closest_points_on_mesh(X, faces, np.ascontiguousarray(X[u]))
+            n2 = _face_normals(X, faces)[t2]
+            dp = np.minimum(np.einsum("ij,ij->i", X[u] - c2, n2), 0.0)
+            res.append(dp)
+            wts.append(np.full(len(u), gamma / len(u)))
+            rho += gamma * float(np.sum(dp * dp)) / len(u)
+            if with_jac:
+                Fi = faces[t2]
+                Jc = (b2[:, 0, None, None] * Jall[Fi[:, 0]] + b2[:, 1, None, None] * Jall[Fi[:, 1]]
+                      + b2[:, 2, None, None] * Jall[Fi[:, 2]])
+                Jrow = np.einsum("ic,icp->ip", n2, Jall[u] - Jc)
+                Jrow[dp == 0.0] = 0.0
+                rows.append(Jrow)
         inl = np.abs(d) < 3 * sigma
         rms = float(np.sqrt(np.mean(d[inl] ** 2))) if inl.any() else float("nan")
         return np.concatenate(res), np.concatenate(wts), (np.concatenate(rows) if with_jac else None), rms, rho
@@ -192,7 +222,7 @@ class _Fitter:
         return p
 
     def run(self, p: BodyParams, iterations: int, sigmas, free=None, n_scan=None, n_body=None,
-            history=None, boosts=(1.0,)):
+            history=None, boosts=(1.0,), pen_last=0):
         o, m = self.opts, self.m
         free = self.free if free is None else free
         n_scan = min(n_scan or o.scan_samples, len(self.scan))
@@ -202,6 +232,7 @@ class _Fitter:
         for it in range(iterations):
             sigma = float(sigmas[min(it, len(sigmas) - 1)])
             self.pose_boost = float(boosts[min(it, len(boosts) - 1)])
+            self.pen_on = 1.0 if it >= iterations - pen_last else 0.0
             idx_scan = self.rng.choice(len(self.scan), n_scan, replace=False)
             idx_body = self.rng.choice(m.num_vertices, n_body, replace=False)
             r, w, Jr, rms, rho = self._terms(p, sigma, idx_scan, idx_body, with_jac=True)
@@ -278,26 +309,29 @@ def fit_body(scan_vertices, scan_faces=None, model: BodyModel | None = None, *, 
     free_rigid[sl["translation"]] = True
     free_rigid[sl["shape"].start] = True
 
-    best = None
     idx_s = fitter.rng.choice(len(P), min(4000, len(P)), replace=False)
     idx_b = fitter.rng.choice(model.num_vertices, 2000, replace=False)
-    for k in range(4):
-        yaw = yaw0 + k * np.pi / 2
+
+    def initial(yaw):
         p = model.zero_params()
+        p.rotation[:] = [0, yaw, 0]
+        R = Rotation.from_rotvec(p.rotation).as_matrix()
         if not garment_only:
             p.shape[0] = np.clip((height_scan - h0) / dh, -o.shape_range, o.shape_range)
-            p.rotation[:] = [0, yaw, 0]
             body_c = np.array([0.0, 0.0, rest[:, 2].mean()])
-            R = Rotation.from_rotvec(p.rotation).as_matrix()
             p.translation[:] = [centre[0], lo[1], centre[2]] - R @ body_c
         else:
             # the garment's top (shoulder line) at the body's shoulders, centred horizontally
-            p.rotation[:] = [0, yaw, 0]
             sh = model.j_template[[model.joint_index("shoulder_left"), model.joint_index("shoulder_right")]].mean(0)
-            R = Rotation.from_rotvec(p.rotation).as_matrix()
             p.translation[:] = [centre[0], hi[1] - sh[1] - 0.02, centre[2]] - R @ np.array([0, 0, sh[2]])
-        sig = np.geomspace(0.15, 0.03, 10)
-        q, _ = fitter.run(p, 10, sig, free=free_rigid, n_scan=1500, n_body=800)
+        return p
+
+    # twelve yaws 30° apart scored as placed, the three best refined rigidly (with stature)
+    starts = [initial(yaw0 + k * np.pi / 6) for k in range(12)]
+    scores = [fitter.energy(q, 0.1, idx_s, idx_b) for q in starts]
+    best = None
+    for k in np.argsort(scores)[:3]:
+        q, _ = fitter.run(starts[k], 10, np.geomspace(0.15, 0.03, 10), free=free_rigid, n_scan=1500, n_body=800)
         e = fitter.energy(q, 0.03, idx_s, idx_b)
         if best is None or e < best[0]:
             best = (e, q)
@@ -309,7 +343,8 @@ def fit_body(scan_vertices, scan_faces=None, model: BodyModel | None = None, *, 
     n_anneal = max(o.iterations - 8, 1)
     sig = np.geomspace(o.sigma[0], o.sigma[1], n_anneal)
     boosts = np.geomspace(o.pose_prior_boost, 1.0, n_anneal)
-    p, rms = fitter.run(p, o.iterations, sig, history=history, boosts=boosts)
+    p, rms = fitter.run(p, o.iterations, sig, history=history, boosts=boosts,
+                        pen_last=o.self_penetration_iterations)
     return FitResult(params=p, to_core=A, history=history, rms=rms)
 
 
@@ -320,3 +355,40 @@ def inside_fraction(model: BodyModel, params: BodyParams, points) -> float:
     tri, _, cp = _core.closest_points_on_mesh(X, model.faces, P)
     n = _face_normals(X, model.faces)[tri]
     return float(np.mean(np.einsum("ij,ij->i", P - cp, n) < 0))
+
+
+_TORSO = ("pelvis", "spine_1", "spine_2", "spine_3", "spine_4", "chest", "clavicle_left", "clavicle_right")
+
+
+def penetration_pairs(model: BodyModel) -> list:
+    """(vertex indices, faces) pairs checked for self-penetration: forearm+hand vertices
+    against the torso surface, lower-leg vertices against the other leg's surface. Empty for
+    models without the default skeleton's joint names (e.g. user SMPL files)."""
+    names = model.joint_names
+    need = set(_TORSO) | {f"{j}_{s}" for j in ("elbow", "wrist", "hip", "knee", "ankle") for s in ("left", "right")}
+    if not need <= set(names):
+        return []
+    dom = np.argmax(model.weights, axis=1)
+
+    def verts(*joints):
+        return np.flatnonzero(np.isin(dom, [names.index(j) for j in joints])).astype(np.int64)
+
+    def faces(*joints):
+        inside = np.zeros(model.num_vertices, bool)
+        inside[verts(*joints)] = True
+        return np.ascontiguousarray(model.faces[inside[model.faces].all(axis=1)])
+    torso = faces(*_TORSO)
+    return [(verts("elbow_left", "wrist_left"), torso), (verts("elbow_right", "wrist_right"), torso),
+            (verts("knee_left", "ankle_left"), faces("hip_right", "knee_right", "ankle_right")),
+            (verts("knee_right", "ankle_right"), faces("hip_left", "knee_left", "ankle_left"))]
+
+
+def self_penetration_depth(model: BodyModel, params: BodyParams) -> float:
+    """Deepest self-penetration (m) of the posed body over penetration_pairs (0 when none)."""
+    X = model.pose(params)
+    worst = 0.0
+    for verts, faces in penetration_pairs(model):
+        tri, _, cp = _core.closest_points_on_mesh(X, faces, np.ascontiguousarray(X[verts]))
+        d = np.einsum("ij,ij->i", X[verts] - cp, _face_normals(X, faces)[tri])
+        worst = max(worst, float(-d.min()) if d.min() < 0 else 0.0)
+    return worst

@@ -161,6 +161,19 @@ class BodyModel:
         n = self.num_vertices if vertices is None else len(idx)
         return Jm.reshape(n, 3, self.num_params)
 
+    def vjp(self, params: BodyParams, grad_vertices) -> np.ndarray:
+        """Chain rule for a loss L of the posed vertices: dL/dθ = Σ_v (∂x_v/∂θ)ᵀ dL/dx_v.
+        grad_vertices: (V, 3) dL/dx (per m); returns (P,) in the order of param_slices()
+        (BodyParams.from_vector(...) gives it the parameters' shapes)."""
+        g = _validate.points("grad_vertices", grad_vertices)
+        if g.shape != (self.num_vertices, 3):
+            raise ValueError(f"grad_vertices: expected ({self.num_vertices}, 3), got {g.shape}")
+        rows = np.flatnonzero(np.any(g != 0, axis=1))
+        if rows.size == 0:
+            return np.zeros(self.num_params)
+        J = self.jacobian(params, rows)
+        return np.einsum("nc,ncp->p", g[rows], J)
+
     def landmarks(self, params: BodyParams):
         """BodyLandmarks of the posed body (positions in m, girths from cross-sections)."""
         from .measure import body_landmarks

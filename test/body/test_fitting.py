@@ -101,3 +101,18 @@ def test_garment_only_fit_puts_the_body_inside(model):
     height = lambda V: V[:, 1].max() - V[:, 1].min()  # noqa: E731
     assert abs(height(Xf) - height(Xw)) <= 0.03
     np.testing.assert_array_equal(res.params.bone_scales, 1.0)     # held in garment-only mode
+
+
+def test_self_penetration_depth(model):
+    from diffavatar_core.body.fitting import self_penetration_depth
+    assert self_penetration_depth(model, model.zero_params()) == 0.0
+    # the same body with its joint limits opened: the left arm swung into the chest
+    wide = BodyModel(model.v_template, model.shapedirs, model.j_template, model.j_shapedirs, model.parents,
+                     model.weights, model.faces, model.joint_names, -np.pi * np.ones((22, 3)),
+                     np.pi * np.ones((22, 3)))
+    p = wide.zero_params()
+    depths = []
+    for a in (-0.8, -1.0, -1.2):
+        p.pose[wide.joint_index("shoulder_left")] = [0, 0, a]
+        depths.append(self_penetration_depth(wide, p))
+    assert 0 < depths[0] < depths[1] < depths[2]

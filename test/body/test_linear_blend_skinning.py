@@ -102,3 +102,22 @@ def test_params_json_round_trip(model):
         BodyParams(p.shape, p.pose, -p.bone_scales)
     with pytest.raises(ValueError, match="params"):
         model.pose(BodyParams.zeros(model.num_shape + 1, model.num_joints))
+
+
+def test_vjp_chains_a_vertex_loss(model):
+    rng = np.random.default_rng(13)
+    p = random_params(model, rng)
+    target = model.pose(p) + rng.normal(scale=0.01, size=(model.num_vertices, 3))
+
+    def loss(q):
+        return 0.5 * np.sum((model.pose(q) - target) ** 2)
+    g = model.vjp(p, model.pose(p) - target)
+    x0 = p.to_vector()
+    h = 1e-6
+    for c in rng.choice(model.num_params, 12, replace=False):
+        xp, xm = x0.copy(), x0.copy()
+        xp[c] += h
+        xm[c] -= h
+        fd = (loss(BodyParams.from_vector(xp, model.num_shape, model.num_joints))
+              - loss(BodyParams.from_vector(xm, model.num_shape, model.num_joints))) / (2 * h)
+        assert abs(fd - g[c]) <= 1e-5 * max(1.0, abs(fd)), (c, fd, g[c])
