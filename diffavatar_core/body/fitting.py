@@ -240,13 +240,12 @@ class _Fitter:
             e0 = rho + float(np.sum(wp * rp * rp))
             r = np.concatenate([r, rp])
             w = np.concatenate([w, wp])
-            Jr = np.concatenate([Jr, Jp])[:, free]
-            H = Jr.T @ (w[:, None] * Jr)
-            g = Jr.T @ (w * r)
+            Jr = np.ascontiguousarray(np.concatenate([Jr, Jp])[:, free])
+            H, g = _core.normal_equations(Jr, np.ascontiguousarray(w), np.ascontiguousarray(r))
             x0 = p.to_vector()
             accepted = False
             for _ in range(6):
-                step = np.linalg.solve(H + lam * np.diag(np.diag(H) + 1e-12), -g)
+                step = _core.damped_step(H, g, lam)
                 x = x0.copy()
                 x[free] += step
                 q = self.project(BodyParams.from_vector(x, self.K, self.J))

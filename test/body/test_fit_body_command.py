@@ -16,12 +16,12 @@ def test_fit_body_command(tmp_path, capsys):
     truth.shape[0] = 0.8
     truth.pose[model.joint_index("elbow_left")] = [-0.5, 0.0, 0.0]
     X = model.pose(truth)
-    pts, _ = sample_surface(X, model.faces, 15000, seed=4)
+    pts, _ = sample_surface(X, model.faces, 8000, seed=4)
     zup = np.array([[1.0, 0, 0], [0, 0, -1], [0, 1, 0]])
     scan = tmp_path / "scan.ply"
     trimesh.PointCloud(100 * pts @ zup.T).export(str(scan))
     rc = main(["fit-body", str(scan), "--out", str(tmp_path / "out"), "--units", "cm", "--up", "z",
-               "--iterations", "30", "--quiet"])
+               "--iterations", "20", "--quiet"])
     assert rc == 0
     V, F = load_mesh(tmp_path / "out" / "body.obj")
     assert len(V) == model.num_vertices and len(F) == len(model.faces)

@@ -5,6 +5,7 @@
 #include <pybind11/stl.h>
 
 #include "body/linear_blend_skinning.hpp"
+#include "body/normal_equations.hpp"
 #include "geometry/triangle_mesh_bvh.hpp"
 
 namespace py = pybind11;
@@ -59,6 +60,13 @@ void bind_body(py::module_& m) {
            },
            py::arg("shape"), py::arg("angles"), py::arg("bone_scales"), py::arg("rotation"), py::arg("translation"),
            py::arg("vertices"));
+
+  m.def("normal_equations", &normal_equations, py::arg("J").noconvert(), py::arg("w").noconvert(),
+        py::arg("r").noconvert(), py::call_guard<py::gil_scoped_release>(),
+        "(H = Jᵀ diag(w) J, g = Jᵀ diag(w) r) of a weighted least-squares problem.");
+  m.def("damped_step", &damped_step, py::arg("H"), py::arg("g"), py::arg("lambda"),
+        py::call_guard<py::gil_scoped_release>(),
+        "Levenberg–Marquardt step solving (H + λ diag(H) + 1e-12 I) δ = −g.");
 
   m.def("closest_points_on_mesh",
         [](const RefX3d& V, const RefX3i& F, const RefX3d& P) {
