@@ -121,3 +121,19 @@ def test_vjp_chains_a_vertex_loss(model):
         fd = (loss(BodyParams.from_vector(xp, model.num_shape, model.num_joints))
               - loss(BodyParams.from_vector(xm, model.num_shape, model.num_joints))) / (2 * h)
         assert abs(fd - g[c]) <= 1e-5 * max(1.0, abs(fd)), (c, fd, g[c])
+
+
+def test_normal_equations_and_damped_step():
+    from diffavatar_core import _core
+    rng = np.random.default_rng(17)
+    J = rng.normal(size=(200, 7))
+    w = rng.uniform(0, 2, 200)
+    r = rng.normal(size=200)
+    H, g = _core.normal_equations(J, w, r)
+    np.testing.assert_allclose(H, J.T @ (w[:, None] * J), rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(g, J.T @ (w * r), rtol=1e-12, atol=1e-12)
+    lam = 0.3
+    step = _core.damped_step(H, g, lam)
+    np.testing.assert_allclose((H + lam * np.diag(np.diag(H)) + 1e-12 * np.eye(7)) @ step, -g, atol=1e-10)
+    with pytest.raises(ValueError):
+        _core.normal_equations(J, w[:10], r)
