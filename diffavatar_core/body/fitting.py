@@ -1,0 +1,393 @@
+"""Fitting the parametric body to a scan (paper §4.1, "Body Shape and Pose Initialization"):
+Gauss–Newton / Levenberg–Marquardt over shape ν, joint angles ψ, bone-length scales and a
+global rigid transform, minimising a robust two-way point-to-surface Chamfer energy, with
+joint limits (angles projected onto their box after every step) and priors.
+
+Energy (all lengths in m, after the scan is brought into the core's frame):
+  E(θ) = 1/M Σ_i ρ_σ(n_i·(x_i(θ) − p_i))            scan → body, point-to-plane: p_i a scan
+                                                     sample, x_i its closest body-surface point
+                                                     (barycentric in the posed body), n_i the
+                                                     body face normal
+       + β/B Σ_v ρ_σb(|x_v(θ) − q_v|)                body → scan: q_v the closest scan point
+                                                     (surface when the scan has faces)
+       + γ/Q Σ_u min(0, n_u·(x_u(θ) − y_u(θ)))²      self-penetration, in the last iterations:
+                                                     forearm/hand vertices x_u against the torso
+                                                     surface, lower-leg vertices against the
+                                                     other leg (y_u the closest point there, n_u
+                                                     its normal)
+       + α_ν |ν|² + α_ψ |ψ|² + α_s |s − 1|²          priors (ν ~ N(0, I))
+ρ_σ is Geman–McClure, minimised by iteratively reweighted least squares
+(w = σ⁴ / (σ² + r²)²), so holes and floating fragments (residuals ≫ σ) are ignored; σ is
+annealed from coarse to fine, and σ_b = σ/2 so that body vertices over a hole let go early.
+The global transform is initialised from the scan's robust
+extent and horizontal principal axes (twelve yaw candidates; the three best are refined
+rigidly with the stature coefficient, and the best of those starts the full fit).
+
+Garment-only scans (the body is not visible): the garment is a shell around the body, so
+  E_g = 1/M Σ_i w_i (d_i − c)²,  d_i = n_i·(p_i − x_i) the signed garment-to-body distance,
+with weight κ = penetration_weight where the garment is inside the clearance c (d_i < c: the
+body pokes through or is too close) and Geman–McClure weight where it is outside (loose regions such as
+a skirt do not pull the body out); bone scales are held at 1 and the priors are stronger, so
+the uncovered parts of the body stay plausible.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.spatial import cKDTree
+from scipy.spatial.transform import Rotation
+
+from .. import _core, _validate
+from .model import BodyModel
+from .params import BodyParams
+
+UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001}
+
+
+def scan_to_core(points, units: str = "m", up: str = "y") -> tuple[np.ndarray, np.ndarray]:
+    """Scan points → core frame (m, Y up). Returns (points (N,3) m, 3×3 matrix A with
+    core = A @ scan); Z-up scans are turned by −90° about X ((x, y, z) → (x, z, −y))."""
+    if units not in UNITS:
+        raise ValueError(f"units: expected one of {sorted(UNITS)}, got {units!r}")
+    if up not in ("y", "z"):
+        raise ValueError(f"up: expected 'y' or 'z', got {up!r}")
+    P = _validate.points("scan", points)
+    A = UNITS[units] * (np.eye(3) if up == "y" else np.array([[1.0, 0, 0], [0, 0, 1], [0, -1, 0]]))
+    return P @ A.T, A
+
+
+@dataclass
+class FitOptions:
+    """Tuning of fit_body (lengths in m)."""
+    iterations: int = 45                 # Gauss–Newton iterations of the full fit
+    scan_samples: int = 5000             # scan points per iteration (scan → body)
+    body_samples: int = 2500             # body vertices per iteration (body → scan)
+    sigma: tuple = (0.08, 0.015)        # robust scale annealed from the first to the second
+    body_to_scan_weight: float = 0.3     # β
+    body_to_scan_sigma: float = 0.5      # robust scale of the body → scan term, × σ
+    shape_prior: float = 2e-8            # α_ν (m² per unit²)
+    pose_prior: float = 2e-8             # α_ψ (m² per rad²) at the end of the annealing
+    pose_prior_boost: float = 1000.0     # α_ψ multiplier at the start (annealed to 1)
+    scale_prior: float = 2e-5            # α_s (m² per unit of scale²)
+    bone_scale_range: tuple = (0.85, 1.2)
+    shape_range: float = 3.5             # |ν_k| ≤ this
+    self_penetration_weight: float = 1.0  # γ
+    self_penetration_samples: int = 300  # vertices per part pair and iteration
+    self_penetration_iterations: int = 12  # the term is active in the last iterations only
+    clearance: float = 0.01              # garment-only: target body-to-garment gap (m)
+    penetration_weight: float = 10.0     # garment-only: weight of gaps below the clearance
+    garment_shape_prior: float = 2e-6
+    garment_pose_prior: float = 5e-5
+    seed: int = 0
+
+
+@dataclass
+class FitResult:
+    """params: fitted BodyParams in the core frame (m, Y up) of the converted scan;
+    to_core: 3×3 matrix taking scan coordinates to that frame; history: energy per iteration;
+    rms: RMS scan → body distance of the inlier scan points (m)."""
+    params: BodyParams
+    to_core: np.ndarray
+    history: list = field(default_factory=list)
+    rms: float = float("nan")
+
+
+def _gm_weight(r, sigma):
+    return (sigma ** 2 / (sigma ** 2 + r ** 2)) ** 2
+
+
+def _gm_rho(r, sigma):
+    """Geman–McClure ρ(r) = σ² r² / (σ² + r²) (≈ r² for |r| ≪ σ, → σ² for outliers)."""
+    return sigma ** 2 * r ** 2 / (sigma ** 2 + r ** 2)
+
+
+def _face_normals(X, F):
+    n = np.cross(X[F[:, 1]] - X[F[:, 0]], X[F[:, 2]] - X[F[:, 0]])
+    return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-18)
+
+
+class _Fitter:
+    def __init__(self, model: BodyModel, scan: np.ndarray, scan_faces, opts: FitOptions, garment: bool,
+                 progress=None):
+        self.m, self.opts, self.garment = model, opts, garment
+        self.scan = scan
+        self.scan_faces = scan_faces
+        self.tree = cKDTree(scan)
+        self.rng = np.random.default_rng(opts.seed)
+        self.progress = progress
+        K, J = model.num_shape, model.num_joints
+        sl = model.param_slices()
+        free = np.ones(model.num_params, bool)
+        fixed_angle = (model.limits_lo >= model.limits_hi).reshape(-1)
+        free[sl["pose"]] &= ~fixed_angle
+        free[sl["bone_scales"].start] = False          # the root's scale has no effect
+        if garment:
+            free[sl["bone_scales"]] = False
+        self.free = free
+        self.sl = sl
+        self.K, self.J = K, J
+        self.pose_boost = 1.0
+        self.pen_pairs = penetration_pairs(model)
+        self.pen_on = 0.0
+        self.pen_rng = np.random.default_rng(opts.seed + 1)
+
+    # -- residuals and their Jacobians at θ ------------------------------------------------------
+    def _terms(self, p: BodyParams, sigma: float, idx_scan, idx_body, with_jac: bool):
+        m, o = self.m, self.opts
+        X = m.pose(p)
+        F = m.faces
+        S = self.scan[idx_scan]
+        tri, bary, cp = _core.closest_points_on_mesh(X, F, np.ascontiguousarray(S))
+        nf = _face_normals(X, F)[tri]
+        d = np.einsum("ij,ij->i", S - cp, nf)              # signed, + outside the body
+        rows, res, wts, rho = [], [], [], 0.0
+        if self.garment:
+            r1 = d - o.clearance
+            kin = o.penetration_weight
+            w1 = np.where(r1 < 0, kin, _gm_weight(r1, sigma))
+            rho += float(np.sum(np.where(r1 < 0, kin * r1 * r1, _gm_rho(r1, sigma)))) / len(S)
+            res.append(-r1)                                  # n·(x − p) + c
+            wts.append(w1 / len(S))
+        else:
+            r1 = -d
+            res.append(r1)
+            wts.append(_gm_weight(r1, sigma) / len(S))
+            rho += float(np.sum(_gm_rho(r1, sigma))) / len(S)
+        Jall = m.jacobian(p) if with_jac else None
+        if with_jac:
+            Fi = F[tri]
+            Jb = (bary[:, 0, None, None] * Jall[Fi[:, 0]] + bary[:, 1, None, None] * Jall[Fi[:, 1]]
+                  + bary[:, 2, None, None] * Jall[Fi[:, 2]])
+            rows.append(np.einsum("ic,icp->ip", nf, Jb))
+        if not self.garment:
+            Xb = X[idx_body]
+            if self.scan_faces is not None:
+                _, _, q = _core.closest_points_on_mesh(self.scan, self.scan_faces, np.ascontiguousarray(Xb))
+            else:
+                q = self.scan[self.tree.query(Xb)[1]]
+            diff = Xb - q
+            dist = np.linalg.norm(diff, axis=1)
+            beta = o.body_to_scan_weight / len(Xb)
+            sb = o.body_to_scan_sigma * sigma        # tighter: body vertices over holes let go
+            res.append(diff.reshape(-1))
+            wts.append(np.repeat(beta * _gm_weight(dist, sb), 3))
+            rho += beta * float(np.sum(_gm_rho(dist, sb)))
+            if with_jac:
+                rows.append(Jall[idx_body].reshape(-1, m.num_params))
+        gamma = o.self_penetration_weight * self.pen_on
+        for verts, faces in (self.pen_pairs if gamma > 0 else []):
+            u = verts if len(verts) <= o.self_penetration_samples else \
+                self.pen_rng.choice(verts, o.self_penetration_samples, replace=False)
+            t2, b2, c2 = _core.closest_points_on_mesh(X, faces, np.ascontiguousarray(X[u]))
+            n2 = _face_normals(X, faces)[t2]
+            dp = np.minimum(np.einsum("ij,ij->i", X[u] - c2, n2), 0.0)
+            res.append(dp)
+            wts.append(np.full(len(u), gamma / len(u)))
+            rho += gamma * float(np.sum(dp * dp)) / len(u)
+            if with_jac:
+                Fi = faces[t2]
+                Jc = (b2[:, 0, None, None] * Jall[Fi[:, 0]] + b2[:, 1, None, None] * Jall[Fi[:, 1]]
+                      + b2[:, 2, None, None] * Jall[Fi[:, 2]])
+                Jrow = np.einsum("ic,icp->ip", n2, Jall[u] - Jc)
+                Jrow[dp == 0.0] = 0.0
+                rows.append(Jrow)
+        inl = np.abs(d) < 3 * sigma
+        rms = float(np.sqrt(np.mean(d[inl] ** 2))) if inl.any() else float("nan")
+        return np.concatenate(res), np.concatenate(wts), (np.concatenate(rows) if with_jac else None), rms, rho
+
+    def _priors(self, p: BodyParams):
+        """(residuals, weights, Jacobian rows) of the priors (pose prior × self.pose_boost)."""
+        o, m = self.opts, self.m
+        a_nu = o.garment_shape_prior if self.garment else o.shape_prior
+        a_psi = (o.garment_pose_prior if self.garment else o.pose_prior) * self.pose_boost
+        n = m.num_params
+        r = np.concatenate([p.shape, p.pose.reshape(-1), p.bone_scales - 1])
+        w = np.concatenate([np.full(self.K, a_nu), np.full(3 * self.J, a_psi), np.full(self.J, o.scale_prior)])
+        Jp = np.zeros((len(r), n))
+        Jp[np.arange(len(r)), np.arange(len(r))] = 1.0
+        return r, w, Jp
+
+    def energy(self, p, sigma, idx_scan, idx_body):
+        """E(θ) with the robust ρ (module doc) on the given samples."""
+        _, _, _, _, rho = self._terms(p, sigma, idx_scan, idx_body, with_jac=False)
+        rp, wp, _ = self._priors(p)
+        return rho + float(np.sum(wp * rp * rp))
+
+    def project(self, p: BodyParams) -> BodyParams:
+        o, m = self.opts, self.m
+        p.pose = m.clamp_pose(p.pose)
+        p.bone_scales = np.clip(p.bone_scales, *o.bone_scale_range)
+        p.shape = np.clip(p.shape, -o.shape_range, o.shape_range)
+        return p
+
+    def run(self, p: BodyParams, iterations: int, sigmas, free=None, n_scan=None, n_body=None,
+            history=None, boosts=(1.0,), pen_last=0):
+        o, m = self.opts, self.m
+        free = self.free if free is None else free
+        n_scan = min(n_scan or o.scan_samples, len(self.scan))
+        n_body = min(n_body or o.body_samples, m.num_vertices)
+        lam = 1e-4
+        rms = float("nan")
+        for it in range(iterations):
+            sigma = float(sigmas[min(it, len(sigmas) - 1)])
+            self.pose_boost = float(boosts[min(it, len(boosts) - 1)])
+            self.pen_on = 1.0 if it >= iterations - pen_last else 0.0
+            idx_scan = self.rng.choice(len(self.scan), n_scan, replace=False)
+            idx_body = self.rng.choice(m.num_vertices, n_body, replace=False)
+            r, w, Jr, rms, rho = self._terms(p, sigma, idx_scan, idx_body, with_jac=True)
+            rp, wp, Jp = self._priors(p)
+            e0 = rho + float(np.sum(wp * rp * rp))
+            r = np.concatenate([r, rp])
+            w = np.concatenate([w, wp])
+            Jr = np.ascontiguousarray(np.concatenate([Jr, Jp])[:, free])
+            H, g = _core.normal_equations(Jr, np.ascontiguousarray(w), np.ascontiguousarray(r))
+            x0 = p.to_vector()
+            accepted = False
+            for _ in range(6):
+                step = _core.damped_step(H, g, lam)
+                x = x0.copy()
+                x[free] += step
+                q = self.project(BodyParams.from_vector(x, self.K, self.J))
+                e1 = self.energy(q, sigma, idx_scan, idx_body)
+                if e1 <= e0:
+                    p, accepted = q, True
+                    lam = max(lam / 3, 1e-7)
+                    break
+                lam *= 10
+            if history is not None:
+                history.append(min(e0, e1) if accepted else e0)
+            if self.progress is not None:
+                self.progress(it, iterations, rms)
+            if not accepted and lam > 1e3:
+                break
+        return p, rms
+
+
+def _robust_extent(P):
+    lo, hi = np.percentile(P, [0.5, 99.5], axis=0)
+    return lo, hi
+
+
+def fit_body(scan_vertices, scan_faces=None, model: BodyModel | None = None, *, units: str = "m",
+             up: str = "y", garment_only: bool = False, options: FitOptions | None = None,
+             progress=None) -> FitResult:
+    """Fits the body to a scan (points (N,3), optional triangles (F,3)) given in `units`
+    (m/cm/mm) with `up` ('y' or 'z') vertical. Returns the body parameters in the core frame
+    (m, Y up) of the converted scan. garment_only: the scan is a garment worn by the body."""
+    model = model or BodyModel.default()
+    o = options or FitOptions()
+    P, A = scan_to_core(scan_vertices, units, up)
+    F = None
+    if scan_faces is not None and len(scan_faces):
+        F = _validate.faces("scan_faces", scan_faces, len(P))
+    lo, hi = _robust_extent(P)
+    inl = np.all((P >= lo - 0.05) & (P <= hi + 0.05), axis=1)
+    centre = P[inl].mean(axis=0)
+    # yaw candidates from the horizontal principal axes (the body's width is along X)
+    H = P[inl][:, [0, 2]] - centre[[0, 2]]
+    evals, evecs = np.linalg.eigh(H.T @ H)
+    major = evecs[:, 1]
+    yaw0 = np.arctan2(-major[1], major[0])        # rotation about Y taking +X to `major`
+    rest = model.v_template
+    height_scan = hi[1] - lo[1]
+
+    # height ↔ first shape coefficient, from the model (linear in ν)
+    def stature(nu):
+        v = model.rest_vertices(nu)
+        return v[:, 1].max() - v[:, 1].min()
+    e0 = np.zeros(model.num_shape)
+    e1 = e0.copy()
+    e1[0] = 1.0
+    h0, dh = stature(e0), stature(e1) - stature(e0)
+
+    fitter = _Fitter(model, P, F, o, garment_only, progress=None)
+    free_rigid = np.zeros(model.num_params, bool)
+    sl = model.param_slices()
+    free_rigid[sl["rotation"]] = True
+    free_rigid[sl["translation"]] = True
+    free_rigid[sl["shape"].start] = True
+
+    idx_s = fitter.rng.choice(len(P), min(4000, len(P)), replace=False)
+    idx_b = fitter.rng.choice(model.num_vertices, 2000, replace=False)
+
+    def initial(yaw):
+        p = model.zero_params()
+        p.rotation[:] = [0, yaw, 0]
+        R = Rotation.from_rotvec(p.rotation).as_matrix()
+        if not garment_only:
+            p.shape[0] = np.clip((height_scan - h0) / dh, -o.shape_range, o.shape_range)
+            body_c = np.array([0.0, 0.0, rest[:, 2].mean()])
+            p.translation[:] = [centre[0], lo[1], centre[2]] - R @ body_c
+        else:
+            # the garment's top (shoulder line) at the body's shoulders, centred horizontally
+            sh = model.j_template[[model.joint_index("shoulder_left"), model.joint_index("shoulder_right")]].mean(0)
+            p.translation[:] = [centre[0], hi[1] - sh[1] - 0.02, centre[2]] - R @ np.array([0, 0, sh[2]])
+        return p
+
+    # twelve yaws 30° apart scored as placed, the three best refined rigidly (with stature)
+    starts = [initial(yaw0 + k * np.pi / 6) for k in range(12)]
+    scores = [fitter.energy(q, 0.1, idx_s, idx_b) for q in starts]
+    best = None
+    for k in np.argsort(scores)[:3]:
+        q, _ = fitter.run(starts[k], 10, np.geomspace(0.15, 0.03, 10), free=free_rigid, n_scan=1500, n_body=800)
+        e = fitter.energy(q, 0.03, idx_s, idx_b)
+        if best is None or e < best[0]:
+            best = (e, q)
+    p = best[1]
+    history: list = []
+    fitter.progress = progress
+    # coarse to fine: the robust scale shrinks and the pose prior relaxes (a stiff skeleton
+    # first, so that shape and global placement settle before distal joints are released)
+    n_anneal = max(o.iterations - 8, 1)
+    sig = np.geomspace(o.sigma[0], o.sigma[1], n_anneal)
+    boosts = np.geomspace(o.pose_prior_boost, 1.0, n_anneal)
+    p, rms = fitter.run(p, o.iterations, sig, history=history, boosts=boosts,
+                        pen_last=o.self_penetration_iterations)
+    return FitResult(params=p, to_core=A, history=history, rms=rms)
+
+
+def inside_fraction(model: BodyModel, params: BodyParams, points) -> float:
+    """Fraction of points (N,3, m) inside the posed body (signed by the closest face normal)."""
+    X = model.pose(params)
+    P = _validate.points("points", points)
+    tri, _, cp = _core.closest_points_on_mesh(X, model.faces, P)
+    n = _face_normals(X, model.faces)[tri]
+    return float(np.mean(np.einsum("ij,ij->i", P - cp, n) < 0))
+
+
+_TORSO = ("pelvis", "spine_1", "spine_2", "spine_3", "spine_4", "chest", "clavicle_left", "clavicle_right")
+
+
+def penetration_pairs(model: BodyModel) -> list:
+    """(vertex indices, faces) pairs checked for self-penetration: forearm+hand vertices
+    against the torso surface, lower-leg vertices against the other leg's surface. Empty for
+    models without the default skeleton's joint names (e.g. user SMPL files)."""
+    names = model.joint_names
+    need = set(_TORSO) | {f"{j}_{s}" for j in ("elbow", "wrist", "hip", "knee", "ankle") for s in ("left", "right")}
+    if not need <= set(names):
+        return []
+    dom = np.argmax(model.weights, axis=1)
+
+    def verts(*joints):
+        return np.flatnonzero(np.isin(dom, [names.index(j) for j in joints])).astype(np.int64)
+
+    def faces(*joints):
+        inside = np.zeros(model.num_vertices, bool)
+        inside[verts(*joints)] = True
+        return np.ascontiguousarray(model.faces[inside[model.faces].all(axis=1)])
+    torso = faces(*_TORSO)
+    return [(verts("elbow_left", "wrist_left"), torso), (verts("elbow_right", "wrist_right"), torso),
+            (verts("knee_left", "ankle_left"), faces("hip_right", "knee_right", "ankle_right")),
+            (verts("knee_right", "ankle_right"), faces("hip_left", "knee_left", "ankle_left"))]
+
+
+def self_penetration_depth(model: BodyModel, params: BodyParams) -> float:
+    """Deepest self-penetration (m) of the posed body over penetration_pairs (0 when none)."""
+    X = model.pose(params)
+    worst = 0.0
+    for verts, faces in penetration_pairs(model):
+        tri, _, cp = _core.closest_points_on_mesh(X, faces, np.ascontiguousarray(X[verts]))
+        d = np.einsum("ij,ij->i", X[verts] - cp, _face_normals(X, faces)[tri])
+        worst = max(worst, float(-d.min()) if d.min() < 0 else 0.0)
+    return worst
