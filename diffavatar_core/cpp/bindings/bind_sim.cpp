@@ -5,6 +5,7 @@
 #include <pybind11/stl.h>
 
 #include "adjoint/equilibrium_adjoint.hpp"
+#include "adjoint/trajectory_adjoint.hpp"
 #include "bindings/py_run_control.hpp"
 #include "sim/cloth_energy.hpp"
 #include "sim/xpbd_solver.hpp"
@@ -103,7 +104,8 @@ void bind_sim(py::module_& m) {
   py::class_<XpbdSolver>(m, "XpbdSolver")
       .def(py::init<ClothModel, ClothControl>(), py::arg("model"), py::arg("control"))
       .def_property_readonly("model", &XpbdSolver::model, py::return_value_policy::reference_internal)
-      .def_property_readonly("control", &XpbdSolver::control)
+      // A copy: writing into it must not bypass set_control's validation and rest cache.
+      .def_property_readonly("control", [](const XpbdSolver& s) { return ClothControl(s.control()); })
       .def("set_control", &XpbdSolver::set_control, py::arg("control"), py::call_guard<py::gil_scoped_release>())
       .def("make_state", &XpbdSolver::make_state, py::arg("x"))
       .def("step",
@@ -153,6 +155,32 @@ void bind_sim(py::module_& m) {
              return energy_gradient(s.energy_context(g), x);
            },
            py::arg("x"), py::arg("gravity"));
+
+  m.def("trajectory_adjoint",
+        [](XpbdSolver& s, const ClothState& start, const SimParams& p, int steps, const RowMatX3d& dphi_dx,
+           const RowMatX3d& dphi_dv, int checkpoint_every, const py::object& progress,
+           std::shared_ptr<CancelToken> cancel) {
+          RunControl rc = make_run_control(progress, cancel);
+          TrajectoryGradient tg;
+          {
+            py::gil_scoped_release nogil;
+            tg = trajectory_adjoint(s, start, p, steps, dphi_dx, dphi_dv, checkpoint_every, rc);
+          }
+          py::dict d;
+          d["rest"] = tg.control.rest;
+          d["stretch_compliance"] = tg.control.stretch_compliance;
+          d["bend_stiffness"] = tg.control.bend_stiffness;
+          d["body_vertices"] = tg.control.body_vertices;
+          d["x0"] = tg.x0;
+          d["v0"] = tg.v0;
+          d["x_final"] = tg.x_final;
+          d["peak_tape_mb"] = tg.peak_tape_mb;
+          d["wall_s"] = tg.wall_s;
+          return d;
+        },
+        py::arg("solver"), py::arg("start"), py::arg("params"), py::arg("steps"), py::arg("dphi_dx"),
+        py::arg("dphi_dv"), py::arg("checkpoint_every") = 1, py::arg("progress") = py::none(),
+        py::arg("cancel") = nullptr);
 
   m.def("equilibrium_adjoint",
         [](const XpbdSolver& s, const RowMatX3d& x, const RowMatX3d& dphi, const Vec3& g, const py::object& progress,

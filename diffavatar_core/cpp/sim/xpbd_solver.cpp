@@ -43,11 +43,19 @@ void XpbdSolver::detect_contacts(const RowMatX3d& x, const SimParams& p) {
   contacts_ = collider_.detect(x, model_.inv_mass, model_.thickness + p.contact_radius);
 }
 
-void XpbdSolver::sweep(ClothState& s, double dt) {
+namespace {
+template <class M>
+VecXd flat(const M& a) {
+  return Eigen::Map<const VecXd>(a.data(), a.size());
+}
+}  // namespace
+
+void XpbdSolver::sweep(ClothState& s, double dt, StepTape* tape) {
   const ClothModel& m = model_;
   const double dt2 = dt * dt;
   RowMatX3d& x = s.x;
   for (const auto& color : m.tri_colors) {
+    if (tape) { tape->x_before.push_back(x); tape->lambda_before.push_back(flat(s.lambda_tri)); }
     const int n = static_cast<int>(color.size());
 #pragma omp parallel for schedule(static) if (n >= kParallelMin)
     for (int j = 0; j < n; ++j) {
@@ -67,6 +75,7 @@ void XpbdSolver::sweep(ClothState& s, double dt) {
     }
   }
   for (const auto& color : m.hinge_colors) {
+    if (tape) { tape->x_before.push_back(x); tape->lambda_before.push_back(s.lambda_hinge); }
     const int n = static_cast<int>(color.size());
 #pragma omp parallel for schedule(static) if (n >= kParallelMin)
     for (int j = 0; j < n; ++j) {
@@ -88,6 +97,7 @@ void XpbdSolver::sweep(ClothState& s, double dt) {
     }
   }
   for (const auto& color : m.seam_colors) {
+    if (tape) { tape->x_before.push_back(x); tape->lambda_before.push_back(flat(s.lambda_seam)); }
     const int n = static_cast<int>(color.size());
 #pragma omp parallel for schedule(static) if (n >= kParallelMin)
     for (int j = 0; j < n; ++j) {
@@ -101,6 +111,7 @@ void XpbdSolver::sweep(ClothState& s, double dt) {
   }
   const int nc = static_cast<int>(contacts_.size());
   if (s.lambda_contact.size() != nc) s.lambda_contact = VecXd::Zero(nc);
+  if (tape) { tape->x_before.push_back(x); tape->lambda_before.push_back(s.lambda_contact); }
   const double ac = 1.0 / (m.contact_stiffness * dt2);
 #pragma omp parallel for schedule(static) if (nc >= kParallelMin)
   for (int j = 0; j < nc; ++j) {
@@ -112,9 +123,14 @@ void XpbdSolver::sweep(ClothState& s, double dt) {
   }
 }
 
-double XpbdSolver::step(ClothState& s, const SimParams& p) {
+double XpbdSolver::step(ClothState& s, const SimParams& p, StepTape* tape) {
   const ClothModel& m = model_;
   const int nv = m.num_vertices;
+  if (tape) {
+    *tape = StepTape();
+    tape->x_start = s.x;
+    tape->v_start = s.v;
+  }
   RowMatX3d x_prev = s.x;
   const double decay = std::exp(-p.damping * p.dt);
   double vpred = 0.0;
@@ -131,7 +147,8 @@ double XpbdSolver::step(ClothState& s, const SimParams& p) {
   s.lambda_hinge.setZero();
   s.lambda_seam.setZero();
   s.lambda_contact = VecXd::Zero(contacts_.size());
-  for (int it = 0; it < p.iterations; ++it) sweep(s, p.dt);
+  if (tape) tape->contacts = contacts_;
+  for (int it = 0; it < p.iterations; ++it) sweep(s, p.dt, tape);
   double vmax = 0.0;
   for (int i = 0; i < nv; ++i) {
     if (m.inv_mass[i] == 0.0) {

@@ -37,6 +37,16 @@ struct DrapeParams {
   int refine_iterations = 60;
 };
 
+/// What the trajectory adjoint needs to replay one step backwards: the state at the start of
+/// the step, the positions and the pass's multipliers before every colour pass (in order: the
+/// triangle colours, the hinge colours, the seam colours, then the contacts) and the contacts.
+struct StepTape {
+  RowMatX3d x_start, v_start;
+  std::vector<RowMatX3d> x_before;
+  std::vector<VecXd> lambda_before;
+  std::vector<Contact> contacts;
+};
+
 struct DrapeReport {
   bool converged = false;   // residual ≤ residual_tol at the end (and not diverged)
   bool settled = false;     // XPBD phase reached speed_tol within the step budget
@@ -61,9 +71,9 @@ class XpbdSolver {
   /// A state at rest at positions x (m): v = 0, λ = 0.
   ClothState make_state(const RowMatX3d& x) const;
   /// One XPBD step of length p.dt. Returns the max vertex speed (m/s) after the step.
-  double step(ClothState& s, const SimParams& p);
+  double step(ClothState& s, const SimParams& p, StepTape* tape = nullptr);
   /// One projection sweep over all constraints (the benchmark's unit of work).
-  void sweep(ClothState& s, double dt);
+  void sweep(ClothState& s, double dt, StepTape* tape = nullptr);
   DrapeReport drape(ClothState& s, const SimParams& p, const DrapeParams& d, RunControl& rc);
   /// Newton refinement of s.x to ∇ₓE = 0; returns iterations used; sets residual. The anchors
   /// of the friction proxy are set to s.x unless keep_anchor (then the stored ones are reused).
