@@ -22,7 +22,7 @@ from .sim import drape_job
 def run(out: pathlib.Path) -> int:
     t0 = time.perf_counter()
     out.mkdir(parents=True, exist_ok=True)
-    info, cloth, g, (bv, bf) = drape_job.execute(out, "skirt", edge=0.03)
+    info, cloth, g, (bv, bf) = drape_job.execute(out, "mannequin-skirt", edge=0.03)
     x = np.array(cloth.x)
     # A scan-like target: the drape lowered by 1 cm; loss = ½ Σ |x − target|² (m²).
     target = x + [0.0, -0.01, 0.0]

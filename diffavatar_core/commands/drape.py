@@ -6,11 +6,11 @@ import pathlib
 def register(sub) -> None:
     from ..sim.drape_job import GARMENTS
     p = sub.add_parser("drape", help="sew and drape a garment on the default body (draped.obj, body.obj, drape.json)")
-    p.add_argument("--garment", default="skirt", choices=GARMENTS)
+    p.add_argument("--garment", default="tshirt", choices=GARMENTS)
     p.add_argument("--out", required=True, help="output directory")
     p.add_argument("--max-steps", type=int, default=1500, help="XPBD step budget")
     p.add_argument("--iterations", type=int, default=100, help="constraint sweeps per step")
-    p.add_argument("--edge", type=float, default=0.02, help="target edge length of the garment mesh (m)")
+    p.add_argument("--edge", type=float, default=0.025, help="target edge length of the garment mesh (m)")
     p.add_argument("--no-refine", action="store_true", help="skip the Newton equilibrium refinement")
     p.set_defaults(func=_run)
 

@@ -1,5 +1,9 @@
 """The drape job behind `diffavatar drape` and the demo: a garment sewn and draped on a body,
-written as draped.obj, body.obj and drape.json (metres in the OBJ files)."""
+written as draped.obj, body.obj and drape.json (metres in the OBJ files).
+
+Garments: the built-in templates (diffavatar_core.pattern.templates: tshirt, longsleeve, dress,
+skirt) on the default body model (diffavatar_core.body, zero shape and pose), and
+'mannequin-skirt', the project's two-panel skirt on its generated mannequin (fast; the demo's)."""
 from __future__ import annotations
 
 import json
@@ -13,29 +17,42 @@ from .cloth import Cloth
 from .material import ClothMaterial
 from .scenes import mannequin, two_panel_skirt
 
-GARMENTS = ("skirt",)
+from ..pattern.templates import TEMPLATES
+
+GARMENTS = tuple(TEMPLATES) + ("mannequin-skirt",)
 
 
-def build(garment: str = "skirt", material: ClothMaterial | None = None, edge: float = 0.02):
-    """(Cloth, garment dict, body (V, F)) for a project-generated garment on the mannequin."""
+def build(garment: str = "tshirt", material: ClothMaterial | None = None, edge: float = 0.025):
+    """(Cloth, garment dict, body (V, F)) for `garment` (see GARMENTS) at target edge `edge` (m).
+    The garment dict has rest, faces, x0, seams, groups, boundaries (name → vertex chain)."""
     if garment not in GARMENTS:
         raise ValueError(f"garment: unknown {garment!r}; available: {', '.join(GARMENTS)}")
-    body = mannequin()
-    g = two_panel_skirt(edge=edge)
     mat = material or ClothMaterial()
+    if garment == "mannequin-skirt":
+        body = mannequin()
+        g = two_panel_skirt(edge=edge)
+    else:
+        from ..body import BodyModel
+        from ..pattern.templates import make_template
+        model = BodyModel.default()
+        params = model.zero_params()
+        body = (model.pose(params), model.faces)
+        t = make_template(garment, landmarks=model.landmarks(params), edge_length=edge)
+        g = dict(rest=t.rest, faces=t.faces, x0=t.x0, seams=t.seams, groups=t.panel[t.faces[:, 0]],
+                 boundaries=dict(t.boundaries))
     cloth = Cloth(g["rest"], g["faces"], g["x0"], seams=g["seams"], groups=g["groups"],
                   materials=[mat] * (int(g["groups"].max()) + 1), body=body)
     return cloth, g, body
 
 
-def run(out: pathlib.Path, garment: str = "skirt", max_steps: int = 1500, iterations: int = 100,
-        refine: bool = True, edge: float = 0.02, progress=None, cancel=None) -> dict:
+def run(out: pathlib.Path, garment: str = "tshirt", max_steps: int = 1500, iterations: int = 100,
+        refine: bool = True, edge: float = 0.025, progress=None, cancel=None) -> dict:
     """Drapes and writes the files; returns the drape.json content."""
     return execute(out, garment, max_steps, iterations, refine, edge, progress, cancel)[0]
 
 
-def execute(out: pathlib.Path, garment: str = "skirt", max_steps: int = 1500, iterations: int = 100,
-            refine: bool = True, edge: float = 0.02, progress=None, cancel=None):
+def execute(out: pathlib.Path, garment: str = "tshirt", max_steps: int = 1500, iterations: int = 100,
+            refine: bool = True, edge: float = 0.025, progress=None, cancel=None):
     """As run, also returning the draped Cloth, the garment dict and the body: (info, cloth, g, body)."""
     t0 = time.perf_counter()
     out.mkdir(parents=True, exist_ok=True)
