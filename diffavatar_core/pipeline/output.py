@@ -61,6 +61,10 @@ def result_summary(r: RecoveryResult) -> dict:
         "iterations": r.iterations,
         "wall_s": r.wall_s,
         "loss_history": r.loss_history,
+        "warnings": list(r.warnings),
+        **({"body_params": {"shape": r.body_params.shape, "pose_euler_zyx_rad": r.body_params.pose,
+                            "bone_scales": r.body_params.bone_scales, "rotation_axis_angle_rad": r.body_params.rotation,
+                            "translation_m": r.body_params.translation}} if r.body_params is not None else {}),
     })
 
 
@@ -111,7 +115,8 @@ def write_result(result: RecoveryResult, out_dir: str | pathlib.Path, scan=None)
     """Writes every output file; returns the directory. Existing files of a previous run in the
     same directory are overwritten. With `scan` ((V, F) of the input scan, m, core frame) also
     writes preview.png (scan vs result from 4 views) and sets metrics["ssim"], the mean render
-    SSIM over those views (paper Table 1), before result.json is written."""
+    SSIM over those views (paper Table 1), before result.json is written. With result.garment
+    (the pattern.Garment) also pattern.json, pattern.svg and pattern.png."""
     out = pathlib.Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     result.output_dir = str(out)
@@ -129,4 +134,10 @@ def write_result(result: RecoveryResult, out_dir: str | pathlib.Path, scan=None)
          header="DiffAvatar draped garment (m, Y up); vt = pattern coordinates (m)")
     _obj(out / "body.obj", result.body_vertices, result.body_faces, header="DiffAvatar recovered body (m, Y up)")
     plot_loss(out / "loss.png", result.loss_history)
+    if result.garment is not None:
+        from ..pattern.export import save_pattern_json, save_png, save_svg
+        handles = result.pattern.handles if len(result.pattern.handles) else None
+        save_pattern_json(out / "pattern.json", result.garment, handles)
+        save_svg(out / "pattern.svg", result.garment, handles)
+        save_png(out / "pattern.png", result.garment, handles)
     return out

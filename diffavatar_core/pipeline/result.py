@@ -37,7 +37,7 @@ class BodyAssets:
     model_id: str
     shape: np.ndarray               # (K,) shape coefficients ν
     joint_names: list               # (J,)
-    pose: np.ndarray                # (J, 3) axis-angle, rad
+    pose: np.ndarray                # (J, 3) axis-angle per joint, rad
     bone_scales: np.ndarray         # (J,) dimensionless
     global_transform: np.ndarray    # (6,) axis-angle rad + translation m
 
@@ -59,3 +59,7 @@ class RecoveryResult:
     wall_s: float
     loss_history: list = field(default_factory=list)  # per iteration: {"iteration", "value", "terms"}
     output_dir: str = ""
+    garment: object = None          # the recovered pattern.Garment (writes pattern.json/.svg/.png)
+    body_params: object = None      # body.BodyParams as fitted (Euler joint angles; exact re-posing)
+    warnings: list = field(default_factory=list)  # what preprocessing dropped or could not find
+    scan_mesh: tuple | None = None  # (V, F) of the cleaned scan, m, core frame (preview.png, SSIM)

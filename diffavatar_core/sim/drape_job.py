@@ -57,6 +57,7 @@ def execute(out: pathlib.Path, garment: str = "tshirt", max_steps: int = 1500, i
     t0 = time.perf_counter()
     out.mkdir(parents=True, exist_ok=True)
     cloth, g, (bv, bf) = build(garment, edge=edge)
+    sew_steps = cloth.sew(cancel=cancel)
     r = cloth.drape(max_steps=max_steps, iterations=iterations, refine=refine, progress=progress,
                     cancel=cancel, raise_on_divergence=False)
     x = np.array(cloth.x)
@@ -65,7 +66,7 @@ def execute(out: pathlib.Path, garment: str = "tshirt", max_steps: int = 1500, i
     save_mesh(out / "body.obj", bv, bf)
     info = {
         "garment": garment, "vertices": int(len(x)), "triangles": int(len(g["faces"])),
-        "body_triangles": int(len(bf)), "steps": r.steps, "settled": r.settled,
+        "body_triangles": int(len(bf)), "sew_steps": sew_steps, "steps": r.steps, "settled": r.settled,
         "converged": r.converged, "diverged": r.diverged, "residual": r.residual,
         "refine_iterations": r.refine_iterations, "max_penetration_mm": 1e3 * r.max_penetration,
         "max_seam_gap_mm": 1e3 * gap, "wall_s": time.perf_counter() - t0, "message": r.message,

@@ -1,0 +1,130 @@
+"""Options of the recovery pipeline: the `recover:` section of config/diffavatar.yaml (merged
+with a user --config file) plus per-run choices (garment type, template file, units, up axis).
+Lengths in m, bending stiffness in N·m, angles in rad."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, fields, replace
+
+from ..config import load_config
+
+PARAMETRIZATIONS = ("cage", "vertices")
+BENDING = ("garment", "panel", "fixed")
+
+
+@dataclass(frozen=True)
+class Weights:
+    boundary: float = 1.0
+    interior: float = 1.0
+    seam: float = 100.0
+    curvature: float = 1.0
+    body_prior: float = 1e-4
+
+
+@dataclass(frozen=True)
+class StepSizes:
+    handles: float = 0.004
+    log10_bending: float = 0.1
+    shape: float = 0.05
+    pose: float = 0.01
+
+
+@dataclass(frozen=True)
+class RecoverOptions:
+    """See config/diffavatar.yaml `recover:` for every field's meaning and unit."""
+    iterations: int = 30
+    edge_length: float = 0.04
+    parametrization: str = "cage"
+    bending: str = "garment"
+    optimize_body: bool = True
+    weights: Weights = field(default_factory=Weights)
+    step_sizes: StepSizes = field(default_factory=StepSizes)
+    bend_stiffness: float = 5e-6
+    samples: int = 2000
+    drape_steps: int = 200
+    drape_iterations: int = 40
+    residual_tol: float = 1e-7
+    max_seam_mismatch_pct: float = 5.0
+    patience: int = 5
+    # per run
+    garment_type: str | None = None
+    template: str | None = None          # a template file (OBJ with UVs / GarmentCode JSON)
+    units: str = "m"
+    up: str = "y"
+    label: str | int | None = None
+    job_id: str = ""
+    config: dict = field(default_factory=dict, compare=False, repr=False)  # the full loaded config
+
+    def __post_init__(self):
+        def bad(name, why):
+            raise ValueError(f"recover options: {name} {why}, got {getattr(self, name)!r}")
+        for name in ("iterations", "samples", "drape_steps", "drape_iterations", "patience"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v < 0:
+                bad(name, "must be a non-negative integer")
+        for name in ("edge_length", "bend_stiffness", "residual_tol", "max_seam_mismatch_pct"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
+                bad(name, "must be a positive number")
+        if not 0.005 <= self.edge_length <= 0.2:
+            bad("edge_length", "must lie in [0.005, 0.2] m")
+        if self.parametrization not in PARAMETRIZATIONS:
+            bad("parametrization", f"must be one of {PARAMETRIZATIONS}")
+        if self.bending not in BENDING:
+            bad("bending", f"must be one of {BENDING}")
+        if self.units not in ("m", "cm", "mm"):
+            bad("units", "must be m, cm or mm")
+        if self.up not in ("y", "z"):
+            bad("up", "must be y or z")
+        for group in (self.weights, self.step_sizes):
+            for f in fields(group):
+                v = getattr(group, f.name)
+                if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
+                    raise ValueError(f"recover options: {type(group).__name__.lower()}.{f.name} must be a "
+                                     f"non-negative number, got {v!r}")
+
+    @classmethod
+    def from_config(cls, cfg: dict | None = None, **overrides) -> "RecoverOptions":
+        """From a loaded configuration (default: the project's) with per-run overrides (None
+        values are ignored, so CLI flags left unset keep the configured value)."""
+        cfg = cfg if cfg is not None else load_config()
+        section = dict(cfg.get("recover", {}))
+        known = {f.name for f in fields(cls)}
+        unknown = set(section) - known
+        if unknown:
+            raise ValueError(f"config: unknown key(s) recover.{', recover.'.join(sorted(unknown))}")
+        w = section.pop("weights", {}) or {}
+        s = section.pop("step_sizes", {}) or {}
+        try:
+            section["weights"] = Weights(**w)
+            section["step_sizes"] = StepSizes(**s)
+        except TypeError as exc:
+            raise ValueError(f"config: recover.weights / recover.step_sizes: {exc}") from None
+        section.update({k: v for k, v in overrides.items() if v is not None})
+        unknown = set(section) - known
+        if unknown:
+            raise ValueError(f"recover options: unknown option(s) {', '.join(sorted(unknown))}")
+        return cls(config=cfg, **section)
+
+    @classmethod
+    def coerce(cls, options) -> "RecoverOptions":
+        """RecoverOptions as given, or from a dict of overrides (the node's job options:
+        job_id, iterations (0 = configured), garment_type, units, up_axis)."""
+        if isinstance(options, cls):
+            return options
+        if options is None:
+            return cls.from_config()
+        if not isinstance(options, dict):
+            raise ValueError(f"options: expected RecoverOptions or a dict, got {type(options).__name__}")
+        d = dict(options)
+        if "up_axis" in d:
+            d["up"] = d.pop("up_axis")
+        if not d.get("iterations"):
+            d.pop("iterations", None)
+        for k in ("garment_type", "units", "up", "template", "label"):
+            if k in d and d[k] in ("", None):
+                d.pop(k)
+        return cls.from_config(**d)
+
+    def with_(self, **changes) -> "RecoverOptions":
+        return replace(self, **changes)

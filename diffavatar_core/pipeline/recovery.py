@@ -1,0 +1,215 @@
+"""recover(scan) — the DiffAvatar main job (paper §4.2): a segmented scan in, a simulation-ready
+garment (sewing pattern, material) and body out.
+
+Stages (each reported through `progress` and checked for cancellation):
+  preprocess  scan → ScanData (core frame m / Y up, garment region, named openings, interior
+              samples; diffavatar_core.scan)
+  body        body fit: to the scan's body-labelled points (a full scan) or under the garment
+              (garment-only scans, or too little body visible)
+  drape       template chosen by garment type (or a template file), placed around the fitted
+              body's landmarks, sewn and draped to equilibrium
+  optimize    co-optimization of cage handles, bending stiffness, body shape and pose
+              (pipeline/coopt.py, equilibrium adjoint)
+  metrics     Chamfer before/after (cm), mesh quality, seam mismatch
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from .. import _core
+from ..body import BodyModel
+from ..body.fitting import fit_body
+from ..metrics import chamfer_meshes, mesh_quality
+from ..pattern.cage import build_cage
+from ..pattern.export import pattern_assets
+from ..pattern.garment import Garment
+from ..pattern.templates import TEMPLATES, make_template
+from ..scan import ScanData, load_scan
+from ..scan.errors import ScanError
+from ..sim.cloth import Cloth
+from ..sim.material import ClothMaterial
+from .coopt import co_optimize, seam_mismatch_pct
+from .options import RecoverOptions
+from .result import BodyAssets, MaterialAssets, RecoveryResult
+
+STAGES = ("preprocess", "body", "drape", "optimize", "metrics")
+# garment class → built-in template when the type names a class or a synonym (config/labels.yaml)
+CLASS_TEMPLATE = {"upper": "tshirt", "dress": "dress", "skirt": "skirt", "pants": "pants"}
+MIN_BODY_FRACTION = 0.2    # of the scan's vertices, for a body fit to the body-labelled points
+
+
+class RecoveryError(ValueError):
+    """The recovery cannot proceed with this input (a clear message says why)."""
+    code = "INVALID_SCAN"
+
+
+class _Control:
+    """Progress and cancellation from either the node's RunControl or the API's callbacks."""
+
+    def __init__(self, run_control=None, progress=None, cancel=None):
+        self.rc, self.progress, self.user_cancel = run_control, progress, cancel
+        self.token = run_control.cancel if run_control is not None else _core.CancelToken()
+
+    @property
+    def cancelled(self) -> bool:
+        uc = self.user_cancel
+        if uc is not None and (uc.is_set() if hasattr(uc, "is_set") else bool(getattr(uc, "cancelled", False))):
+            self.token.cancel()
+        return self.token.cancelled
+
+    def check(self, stage: str) -> None:
+        if self.cancelled:
+            raise _core.Cancelled(f"cancelled during {stage}")
+
+    def report(self, stage, iteration=0, max_iterations=0, loss=float("nan"), terms=None) -> None:
+        if self.rc is not None:
+            self.rc.report(stage, iteration, max_iterations, loss, terms or {})
+        if self.progress is not None:
+            self.progress(stage, iteration, max_iterations, loss, terms or {})
+        self.check(stage)
+
+
+def select_template(scan: ScanData, opts: RecoverOptions) -> str:
+    """The built-in template for the scan's garment: its type when that names a template,
+    otherwise the class's default (upper → tshirt, dress, skirt, pants)."""
+    if scan.garment_type and scan.garment_type in TEMPLATES:
+        return scan.garment_type
+    name = CLASS_TEMPLATE.get(scan.garment_class)
+    if name not in TEMPLATES:
+        raise RecoveryError(f"no built-in template for a '{scan.garment_class}' garment (built-ins: "
+                            f"{', '.join(sorted(TEMPLATES))}); give one with --template FILE")
+    return name
+
+
+def _load_template_file(path, edge: float, body_vertices: np.ndarray) -> Garment:
+    """An OBJ-with-UV or GarmentCode JSON template, its 3D layout moved horizontally onto the
+    body's vertical axis (the layout's own height is kept: files are assumed in a Y-up frame
+    with the floor at 0, like the core's)."""
+    from ..pattern.garmentcode import load_garmentcode
+    from ..pattern.obj_import import load_obj_pattern
+    p = str(path)
+    g = load_garmentcode(p, edge_length=edge) if p.lower().endswith(".json") else load_obj_pattern(p)
+    lo, hi = body_vertices.min(axis=0), body_vertices.max(axis=0)
+    centre = 0.5 * (lo + hi)
+    gc = 0.5 * (g.x0.min(axis=0) + g.x0.max(axis=0))
+    g.x0 = g.x0 + np.array([centre[0] - gc[0], 0.0, centre[2] - gc[2]])
+    return g
+
+
+def _body_assets(model: BodyModel, p) -> BodyAssets:
+    # BodyParams hold Euler angles (R = Rz Ry Rx); the assets carry axis-angle per joint
+    pose_aa = Rotation.from_euler("ZYX", np.asarray(p.pose)[:, ::-1]).as_rotvec()
+    return BodyAssets(model_id=model.name, shape=p.shape.copy(), joint_names=list(model.joint_names),
+                      pose=pose_aa, bone_scales=p.bone_scales.copy(),
+                      global_transform=np.concatenate([p.rotation, p.translation]))
+
+
+def recover(scan, options=None, run_control=None, *, progress=None, cancel=None,
+            body_model: BodyModel | None = None) -> RecoveryResult:
+    """Recovers pattern, material and body from a segmented scan.
+
+    scan: a path (PLY with per-vertex `label`, OBJ, ...), (vertices, faces[, labels]) arrays, the
+    node's message dict, or a preprocessed ScanData. options: RecoverOptions or a dict of
+    overrides of the configured defaults (iterations, garment_type, template, units, up, ...).
+    progress(stage, iteration, max_iterations, loss, terms) is called per stage and per
+    iteration; cancel: a threading.Event or CancelToken (raises diffavatar_core.Cancelled).
+    run_control: the node's RunControl (report/cancel), an alternative to progress/cancel.
+    Raises ScanError / RecoveryError (ValueError) with a message naming the problem."""
+    t0 = time.perf_counter()
+    opts = RecoverOptions.coerce(options)
+    ctl = _Control(run_control, progress, cancel)
+    ctl.report("preprocess")
+    if isinstance(scan, ScanData):
+        data = scan
+    else:
+        from ..scan.preprocess import ScanOptions
+        data = load_scan(scan, units=opts.units, up=opts.up, label=opts.label, garment_type=opts.garment_type,
+                         options=ScanOptions.from_config(opts.config) if opts.config else None)
+    Vg_scan, Fg_scan = data.garment_mesh()
+    if len(data.interior_points) < 10:
+        raise RecoveryError(f"the garment region has only {len(data.interior_points)} interior samples; "
+                            f"too small to fit a garment")
+
+    # body -----------------------------------------------------------------------------------
+    ctl.report("body")
+    model = body_model or BodyModel.default()
+    body_mask = data.label_vertex_mask("body") if data.labels is not None else np.zeros(len(data.vertices), bool)
+    full = body_mask.mean() >= MIN_BODY_FRACTION
+    pts = data.vertices[body_mask] if full else Vg_scan
+    fit = fit_body(pts, None, model, garment_only=not full)
+    ctl.check("body")
+    body_params = fit.params
+    body_vertices = model.pose(body_params)
+
+    # template + initial drape ------------------------------------------------------------------
+    ctl.report("drape")
+    if opts.template:
+        g = _load_template_file(opts.template, opts.edge_length, body_vertices)
+        template_name = str(opts.template)
+    else:
+        template_name = select_template(data, opts)
+        g = make_template(template_name, landmarks=model.landmarks(body_params), edge_length=opts.edge_length)
+    material = ClothMaterial(bend_stiffness=opts.bend_stiffness)
+    cloth = Cloth(g.rest, g.faces, g.x0, seams=g.seams, groups=g.panel[g.faces[:, 0]],
+                  materials=[material] * len(g.panels), body=(body_vertices, model.faces))
+    cloth.sew(cancel=ctl.token)
+    r = cloth.drape(max_steps=max(opts.drape_steps, 1), iterations=opts.drape_iterations,
+                    residual_tol=opts.residual_tol, refine_iterations=120, raise_on_divergence=False,
+                    cancel=ctl.token)
+    if not r.converged:
+        raise RecoveryError(f"the initial drape of template '{template_name}' on the fitted body did not "
+                            f"converge ({r.message}; residual {r.residual:.2e})")
+    x_initial = np.array(cloth.x)
+    cm = 100.0
+    nsamp = int(opts.config.get("metrics", {}).get("chamfer_samples", 20000)) if opts.config else 20000
+    chamfer_initial = cm * chamfer_meshes(x_initial, g.faces, Vg_scan, Fg_scan, samples=nsamp, cancel=ctl.token)
+
+    # co-optimization ------------------------------------------------------------------------
+    cage = build_cage(g) if opts.parametrization == "cage" else None
+    ctl.report("optimize", 0, opts.iterations)
+
+    def on_iteration(h):
+        ctl.report("optimize", h["iteration"], opts.iterations, h["value"], h["terms"])
+
+    co = co_optimize(cloth, g, data.interior_points, data.boundaries, opts, cage=cage, body_model=model,
+                     body_params=body_params, on_iteration=on_iteration, cancelled=lambda: ctl.cancelled,
+                     cancel=ctl.token)
+    ctl.check("optimize")
+
+    # result ------------------------------------------------------------------------------------
+    ctl.report("metrics")
+    g_final = Garment(co.rest, g.faces, co.x, g.seams, g.panel, g.panels, g.boundaries, name=g.name)
+    body_final = co.body_vertices if co.body_vertices is not None else body_vertices
+    q = mesh_quality(co.x, g.faces)
+    metrics = {
+        "chamfer_initial_cm": chamfer_initial,
+        "chamfer_final_cm": cm * chamfer_meshes(co.x, g.faces, Vg_scan, Fg_scan, samples=nsamp, cancel=ctl.token),
+        "mesh_quality_min": q.min, "mesh_quality_avg": q.mean,
+        "seam_length_mismatch_max_pct": seam_mismatch_pct(g, co.rest),
+        "pattern_area_m2": g_final.total_area(), "template_area_m2": g.total_area(),
+        "stopped": co.stopped, "rejected_iterations": co.rejected,
+    }
+    bend = np.asarray(co.bend_stiffness, float)
+    mat = MaterialAssets(bending_stiffness=float(np.exp(np.mean(np.log(bend)))),
+                         panel_bending_stiffness=bend.copy() if opts.bending == "panel" else np.zeros(0),
+                         compliance_warp=material.warp_compliance, compliance_weft=material.weft_compliance,
+                         compliance_shear=material.shear_compliance, density=material.density,
+                         thickness=float(cloth.model.thickness))
+    result = RecoveryResult(
+        garment_type=data.garment_type or data.garment_class, template_name=template_name,
+        pattern=pattern_assets(g_final, cage.handles if cage is not None else None), material=mat,
+        body=_body_assets(model, co.body_params), garment_vertices=co.x, garment_faces=g.faces.astype(np.int64),
+        garment_uv=co.rest.copy(), body_vertices=body_final, body_faces=np.asarray(model.faces, np.int64),
+        metrics=metrics, iterations=co.iterations, wall_s=time.perf_counter() - t0,
+        loss_history=[{"iteration": h["iteration"], "value": h["value"], "terms": h["terms"]} for h in co.history])
+    result.garment = g_final
+    result.body_params = co.body_params
+    result.warnings = list(data.warnings)
+    result.scan_mesh = (data.vertices, data.faces)
+    return result
+
+
+__all__ = ["recover", "RecoveryError", "select_template", "STAGES", "ScanError"]
