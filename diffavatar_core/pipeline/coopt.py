@@ -47,109 +47,136 @@ def seam_mismatch_pct(g, rest) -> float:
     return float(100 * np.max(np.abs(la - lb) / np.maximum(np.maximum(la, lb), 1e-12)))
 
 
-def co_optimize(cloth, garment, scan_points, scan_loops: dict, opts: RecoverOptions, cage=None,
-                body_model=None, body_params: BodyParams | None = None, on_iteration=None,
-                cancelled=lambda: False, cancel=None) -> CoOptResult:
-    """cloth: the Cloth of `garment` (a pattern.Garment), already draped to equilibrium on the
-    body; scan_points (N, 3) m: the scan's garment samples; scan_loops: opening name → (K, 3) m
-    (matched by name to garment.boundaries); cage: a pattern.ControlCage (parametrization
-    'cage'); body_model/body_params: co-optimize ν, ψ when given and opts.optimize_body."""
-    g = garment
-    faces = np.asarray(g.faces, np.int32)
-    w, lr0 = opts.weights, opts.step_sizes
-    scan_points = np.asarray(scan_points, np.float64)
-    loops = {k: v for k, v in g.boundaries.items() if k in scan_loops}
-    c0 = cloth.control
-    ngroups = len(np.asarray(c0.bend_stiffness))
-    seam_reg = SeamLengthRegularizer(g)
-    curv_reg = CurvatureRegularizer(g)
-    samples = garment_samples(cloth.x, faces, opts.samples, seed=0)
-    use_body = bool(opts.optimize_body and body_model is not None and body_params is not None)
-    if use_body:
-        sl = body_model.param_slices()
-        p0 = body_params.copy()
-        K, J = body_model.num_shape, body_model.num_joints
-    state = {"x": np.array(cloth.x)}
+class CoOptObjective:
+    """φ(θ) and dφ/dθ of the co-optimization. cloth: the Cloth of `garment` (a pattern.Garment),
+    draped to equilibrium on the body; scan_points (N, 3) m: the scan's garment samples;
+    scan_loops: opening name → (K, 3) m (matched by name to garment.boundaries); cage: a
+    pattern.ControlCage (parametrization 'cage', else every rest vertex is a parameter);
+    body_model/body_params: ν, ψ are parameters when given and opts.optimize_body.
+    Parameter groups: handles ((H·2,) m), log_bend ((1,) or (G,) log10 N·m), shape ((K,)),
+    pose ((J·3,) rad)."""
 
-    def unpack(params):
-        rest = cage.rest(params["handles"].reshape(-1, 2)) if cage is not None else params["handles"].reshape(-1, 2)
-        if opts.bending == "fixed":
-            bend = np.asarray(c0.bend_stiffness)
+    def __init__(self, cloth, garment, scan_points, scan_loops: dict, opts: RecoverOptions, cage=None,
+                 body_model=None, body_params: BodyParams | None = None, cancel=None):
+        self.cloth, self.g, self.opts, self.cage, self.cancel = cloth, garment, opts, cage, cancel
+        self.faces = np.asarray(garment.faces, np.int32)
+        self.scan_points = np.asarray(scan_points, np.float64)
+        self.scan_loops = scan_loops
+        self.loops = {k: v for k, v in garment.boundaries.items() if k in scan_loops}
+        self.c0 = cloth.control
+        self.ngroups = len(np.asarray(self.c0.bend_stiffness))
+        self.seam_reg = SeamLengthRegularizer(garment)
+        self.curv_reg = CurvatureRegularizer(garment)
+        self.samples = garment_samples(cloth.x, self.faces, opts.samples, seed=0)
+        self.use_body = bool(opts.optimize_body and body_model is not None and body_params is not None)
+        self.model, self.p0 = body_model, (body_params.copy() if body_params is not None else None)
+        self.x_warm = np.array(cloth.x)
+
+    def initial_params(self) -> dict:
+        c0, o = self.c0, self.opts
+        params = {"handles": (self.cage.zeta0 if self.cage is not None else np.asarray(c0.rest)).reshape(-1).astype(np.float64)}
+        if o.bending != "fixed":
+            b0 = np.log10(np.maximum(np.asarray(c0.bend_stiffness), 1e-12))
+            params["log_bend"] = b0 if o.bending == "panel" else np.array([b0.mean()])
+        if self.use_body:
+            params["shape"] = self.p0.shape.copy()
+            params["pose"] = self.p0.pose.reshape(-1).copy()
+        return params
+
+    def step_sizes(self) -> dict:
+        s = self.opts.step_sizes
+        lr = {"handles": s.handles}
+        if self.opts.bending != "fixed":
+            lr["log_bend"] = s.log10_bending
+        if self.use_body:
+            lr["shape"], lr["pose"] = s.shape, s.pose
+        return lr
+
+    def unpack(self, params):
+        """(rest (V, 2) m, bend (G,) N·m, BodyParams or None) of a parameter dict."""
+        h = np.asarray(params["handles"], np.float64).reshape(-1, 2)
+        rest = self.cage.rest(h) if self.cage is not None else h
+        if self.opts.bending == "fixed":
+            bend = np.asarray(self.c0.bend_stiffness)
         else:
-            bend = np.broadcast_to(10.0 ** params["log_bend"], (ngroups,)).copy()
+            bend = np.broadcast_to(10.0 ** np.asarray(params["log_bend"]), (self.ngroups,)).copy()
         bp = None
-        if use_body:
-            bp = p0.copy()
+        if self.use_body:
+            bp = self.p0.copy()
             bp.shape[:] = params["shape"]
-            bp.pose[:] = params["pose"].reshape(J, 3)
+            bp.pose[:] = np.asarray(params["pose"]).reshape(self.model.num_joints, 3)
         return rest, bend, bp
 
-    def drape_at(rest, bend, body_vertices):
+    def drape_at(self, rest, bend, body_vertices):
+        """Equilibrium at these controls, warm-started from the last one (Newton; a full XPBD +
+        Newton drape if that fails). Raises ValueError when no equilibrium is reached."""
+        o, cloth = self.opts, self.cloth
         cloth.set_control(rest=rest, bend_stiffness=bend, body_vertices=body_vertices)  # ValueError: inverted
-        cloth.state.x = state["x"]
-        cloth.state.v = np.zeros_like(state["x"])
-        _, res = cloth.refine(keep_anchor=False, residual_tol=opts.residual_tol, refine_iterations=80, cancel=cancel)
-        if not res <= opts.residual_tol:
-            cloth.state.x = state["x"]
-            r = cloth.drape(max_steps=opts.drape_steps, iterations=opts.drape_iterations, min_steps=1,
-                            residual_tol=opts.residual_tol, refine_iterations=120, raise_on_divergence=False,
-                            cancel=cancel)
+        cloth.state.x = self.x_warm
+        cloth.state.v = np.zeros_like(self.x_warm)
+        _, res = cloth.refine(keep_anchor=False, residual_tol=o.residual_tol, refine_iterations=80, cancel=self.cancel)
+        if not res <= o.residual_tol:
+            cloth.state.x = self.x_warm
+            r = cloth.drape(max_steps=max(o.drape_steps, 1), iterations=o.drape_iterations, min_steps=1,
+                            residual_tol=o.residual_tol, refine_iterations=120, raise_on_divergence=False,
+                            cancel=self.cancel)
             if not r.converged:
                 raise ValueError(f"drape did not converge: {r.message}")
 
-    def evaluate(params):
-        rest, bend, bp = unpack(params)
-        mismatch = seam_mismatch_pct(g, rest)
-        if mismatch > opts.max_seam_mismatch_pct:
+    def __call__(self, params):
+        """(φ, {group: dφ/dgroup}, {term: value}); raises ValueError for an invalid iterate."""
+        o, w = self.opts, self.opts.weights
+        rest, bend, bp = self.unpack(params)
+        mismatch = seam_mismatch_pct(self.g, rest)
+        if mismatch > o.max_seam_mismatch_pct:
             raise ValueError(f"seam mismatch {mismatch:.1f}% above the limit")
-        bv = body_model.pose(bp) if use_body else None
-        drape_at(rest, bend, bv)
-        x = np.array(cloth.x)
-        li = interior_loss(x, faces, samples, scan_points)
-        lb = boundary_loss(x, loops, scan_loops) if loops else None
-        ls, gs = seam_reg.value_and_grad(rest)
-        lc, gc = curv_reg.value_and_grad(rest)
+        self.drape_at(rest, bend, self.model.pose(bp) if self.use_body else None)
+        x = np.array(self.cloth.x)
+        li = interior_loss(x, self.faces, self.samples, self.scan_points)
+        lb = boundary_loss(x, self.loops, self.scan_loops) if self.loops else None
+        ls, gs = self.seam_reg.value_and_grad(rest)
+        lc, gc = self.curv_reg.value_and_grad(rest)
         dphi_dx = w.interior * li.grad + (w.boundary * lb.grad if lb is not None else 0.0)
-        ga = equilibrium_gradient(cloth, dphi_dx, cancel=cancel)
+        ga = equilibrium_gradient(self.cloth, dphi_dx, cancel=self.cancel)
         g_rest = ga["rest"] + w.seam * gs + w.curvature * gc
         terms = {"boundary": lb.value if lb is not None else 0.0, "interior": li.value, "seam": ls, "curvature": lc}
-        value = (w.boundary * terms["boundary"] + w.interior * li.value + w.seam * ls + w.curvature * lc)
-        grads = {"handles": (cage.grad_zeta(g_rest) if cage is not None else g_rest).reshape(-1)}
-        if opts.bending != "fixed":
+        value = w.boundary * terms["boundary"] + w.interior * li.value + w.seam * ls + w.curvature * lc
+        grads = {"handles": (self.cage.grad_zeta(g_rest) if self.cage is not None else g_rest).reshape(-1)}
+        if o.bending != "fixed":
             gb = np.asarray(ga["bend_stiffness"]) * bend * np.log(10.0)
-            grads["log_bend"] = gb if opts.bending == "panel" else np.array([gb.sum()])
-        if use_body:
-            gvec = body_model.vjp(bp, ga["body_vertices"])
-            dnu, dpsi = bp.shape - p0.shape, (bp.pose - p0.pose).reshape(-1)
+            grads["log_bend"] = gb if o.bending == "panel" else np.array([gb.sum()])
+        if self.use_body:
+            sl = self.model.param_slices()
+            gvec = self.model.vjp(bp, ga["body_vertices"])
+            dnu, dpsi = bp.shape - self.p0.shape, (bp.pose - self.p0.pose).reshape(-1)
             prior = float(dnu @ dnu + dpsi @ dpsi)
             terms["body_prior"] = prior
             value += w.body_prior * prior
             grads["shape"] = gvec[sl["shape"]] + 2 * w.body_prior * dnu
             grads["pose"] = gvec[sl["pose"]] + 2 * w.body_prior * dpsi
-        state["x"] = x
+        self.x_warm = x
         return float(value), grads, terms
 
-    params = {"handles": (cage.zeta0 if cage is not None else np.asarray(c0.rest)).reshape(-1).astype(np.float64)}
-    lr = {"handles": lr0.handles}
-    if opts.bending != "fixed":
-        b0 = np.log10(np.maximum(np.asarray(c0.bend_stiffness), 1e-12))
-        params["log_bend"] = b0 if opts.bending == "panel" else np.array([b0.mean()])
-        lr["log_bend"] = lr0.log10_bending
-    if use_body:
-        params["shape"] = p0.shape.copy()
-        params["pose"] = p0.pose.reshape(-1).copy()
-        lr["shape"], lr["pose"] = lr0.shape, lr0.pose
+
+def co_optimize(cloth, garment, scan_points, scan_loops: dict, opts: RecoverOptions, cage=None,
+                body_model=None, body_params: BodyParams | None = None, on_iteration=None,
+                cancelled=lambda: False, cancel=None) -> CoOptResult:
+    """Minimizes CoOptObjective (same arguments) from the template's parameters with group Adam
+    (opts.iterations accepted steps at most); the best iterate is re-draped and returned."""
+    obj = CoOptObjective(cloth, garment, scan_points, scan_loops, opts, cage, body_model, body_params, cancel)
+    params = obj.initial_params()
     if opts.iterations == 0:
-        value, _, terms = evaluate(params)
-        history = [{"iteration": 0, "value": value, "terms": terms, "lr": lr}]
+        value, _, terms = obj(params)
+        history = [{"iteration": 0, "value": value, "terms": terms, "lr": obj.step_sizes()}]
         if on_iteration:
             on_iteration(history[-1])
         best, it, rej, stopped = params, 0, 0, "max_iterations"
     else:
-        res = minimize(evaluate, params, lr, max_iterations=opts.iterations, patience=opts.patience,
+        res = minimize(obj, params, obj.step_sizes(), max_iterations=opts.iterations, patience=opts.patience,
                        on_iteration=on_iteration, cancelled=cancelled)
         best, history, it, rej, stopped = res.params, res.history, res.iterations, res.rejected, res.stopped
-    rest, bend, bp = unpack(best)
-    drape_at(rest, bend, body_model.pose(bp) if use_body else None)   # the best iterate's equilibrium
-    return CoOptResult(rest, bend, bp if use_body else body_params,
-                       body_model.pose(bp) if use_body else None, np.array(cloth.x), history, it, rej, stopped)
+    rest, bend, bp = obj.unpack(best)
+    bv = body_model.pose(bp) if obj.use_body else None
+    obj.drape_at(rest, bend, bv)   # the best iterate's equilibrium
+    return CoOptResult(rest, bend, bp if obj.use_body else body_params, bv, np.array(cloth.x), history, it, rej,
+                       stopped)

@@ -146,8 +146,8 @@ def scan_like(garment_x, garment_faces, body_vertices, body_faces, garment_label
               noise: float = 0.002, holes: int = 3, hole_radius: float = 0.012, fragments: int = 3,
               covered_distance: float = 0.025, seams=None):
     """A labelled scan-like mesh (m, core frame) of a draped garment and the visible body:
-    body vertices closer than covered_distance to the garment are removed (hidden), both
-    surfaces subdivided once and displaced by N(0, noise²) along their normals, `holes` small
+    body vertices closer than covered_distance to the garment are removed (hidden), the garment
+    subdivided once (a scan samples other points than the simulation mesh), both surfaces displaced by N(0, noise²) along their normals, `holes` small
     holes punched into the garment away from its boundary, `fragments` floating triangles.
     seams: (S, 2) sewn vertex pairs of the garment, welded (a scan sees one surface)."""
     from ..metrics import surface_distances
@@ -155,8 +155,7 @@ def scan_like(garment_x, garment_faces, body_vertices, body_faces, garment_label
     Vg, Fg = _subdivide(Vg, Fg)
     Vb, Fb = np.asarray(body_vertices, float), np.asarray(body_faces, np.int64)
     hidden = surface_distances(Vb, np.asarray(garment_x, float), np.asarray(garment_faces, np.int32)) < covered_distance
-    keep_f = ~hidden[Fb].any(axis=1)
-    Vb, Fb = _subdivide(Vb, Fb[keep_f])
+    Fb = Fb[~hidden[Fb].any(axis=1)]
     used = np.unique(Fb)
     remap = -np.ones(len(Vb), np.int64)
     remap[used] = np.arange(len(used))
