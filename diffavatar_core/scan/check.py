@@ -56,7 +56,8 @@ class CheckedScan:
     garment_label: the label value of the garment (None: garment-only, or several garment
     labels present that preprocessing chooses among after cleaning); garment_class ('upper',
     'dress', ...; None as garment_label); garment_type: the type given (label-map spelling:
-    'T-Shirt' → 'tshirt'), else the garment label's name when it is a class or type;
+    'T-Shirt' → 'tshirt'), else the garment label's name when it is a class or type (for a
+    garment-only scan: the one garment class or type its label_names name);
     garment_mask (V,) bool: vertices carrying a garment label considered (all for a
     garment-only scan); template_name: '' or as given (checked); height_m: Y extent of the
     vertices the triangles use. The request (units, up, label, requested_garment_type,
@@ -180,17 +181,24 @@ def choose_garment(raw_labels: np.ndarray, lmap: LabelMap, label=None, garment_t
     return value, cls, candidates
 
 
-def garment_only_class(source: str, lmap: LabelMap, label=None, garment_type=None) -> str:
-    """The garment class of a scan without labels: needs a known garment type and no label."""
+def garment_only_class(source: str, lmap: LabelMap, label=None, garment_type=None,
+                       label_names=None) -> tuple[str, str]:
+    """(garment class, garment type) of a scan without labels: needs a known garment type and
+    no label. Without a type, label_names (a message may carry them with no labels) that name
+    exactly one garment class or type give it (['body', 'tshirt'] → 'tshirt')."""
     if garment_type and lmap.garment_class(garment_type) is None:
         raise _unknown_type(garment_type, lmap)
     if label is not None:
         raise LabelError(f"{source}: the scan has no per-vertex labels, so label={label!r} "
                          f"cannot select a garment (give the garment type instead)")
+    if not garment_type and label_names:
+        named = sorted({g for g in map(lmap.canonical_garment_name, label_names) if g is not None})
+        if len(named) == 1:
+            garment_type = named[0]
     if not garment_type:
         raise GarmentTypeMissingError(f"{source}: a garment-only scan (no per-vertex labels) needs the "
                                       f"garment type (garment_type not given; e.g. garment_type='tshirt' / --garment)")
-    return lmap.garment_class(garment_type)
+    return lmap.garment_class(garment_type), garment_type
 
 
 def _n_vertices(vertices) -> int:
@@ -280,17 +288,13 @@ def check_scan(scan, units: str = "m", up: str = "y", label=None, garment_type: 
         raise DegenerateScanError(f"{raw.source}: the surface is degenerate: total area {total:.3g} m² "
                                   f"for a {diag:.3g} m extent (all triangles collinear or collapsed)")
     if raw.labels is None:
-        cls = garment_only_class(raw.source, lmap, label, garment_type)
+        cls, gtype = garment_only_class(raw.source, lmap, label, garment_type, raw.label_names)
         value, mask = None, np.ones(n, bool)
     else:
         value, cls, candidates = choose_garment(raw.labels, lmap, label, garment_type, several_ok=True)
         mask = raw.labels == value if value is not None else np.isin(raw.labels, candidates)
-    if garment_type:
-        gtype = lmap.canonical_garment_name(garment_type)
-    elif value is not None:
-        gtype = lmap.canonical_garment_name(lmap.name_of(value))
-    else:
-        gtype = None
+        gtype = garment_type or (lmap.name_of(value) if value is not None else None)
+    gtype = lmap.canonical_garment_name(gtype) if gtype else None
 
     return CheckedScan(raw, tf, V, np.ascontiguousarray(F, dtype=np.int32), value, cls, gtype, mask, template,
                        height, label, garment_type, opt, lmap)

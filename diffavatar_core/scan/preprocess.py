@@ -264,7 +264,7 @@ def preprocess_checked(checked: CheckedScan) -> ScanData:
                             f"{opt.interior_margin} m away from the boundary")
 
     return ScanData(V, F, labels, dict(lmap.classes), gface, gvert, value, cls,
-                    checked.garment_type if garment_type else None, boundaries, boundary_idx, [pts[i] for i in hole_ids],
+                    checked.garment_type if garment_type or labels is None else None, boundaries, boundary_idx, [pts[i] for i in hole_ids],
                     interior, tf, height, raw.source, warnings)
 
 

@@ -51,6 +51,12 @@ def test_garment_only_scan_and_type_spellings():
     with pytest.raises(sv.UnknownGarmentTypeError, match="not given") as info:
         _check(V, F, np.zeros(0), ())
     assert info.value.code == "UNKNOWN_GARMENT_TYPE" and isinstance(info.value, sv.NoGarmentError)
+    # label_names without labels (a message may carry them) naming one garment give the type
+    s = _check(V, F, None, ["body", "T-Shirt"])
+    assert (s.garment_type, s.garment_class) == ("tshirt", "upper")
+    assert sv.load_scan(s).garment_type == "tshirt"
+    with pytest.raises(sv.GarmentTypeMissingError, match="not given"):
+        _check(V, F, None, ["body", "tshirt", "dress"])
 
 
 def test_units_and_label_map_defaults_are_the_preprocessing_ones():
