@@ -272,9 +272,7 @@ def check_scan(scan, units: str = "m", up: str = "y", label=None, garment_type: 
         # that, as preprocessing does. Costly (KD-tree, mesh graph), so only for a scan that
         # looks implausible as given; a cleaned scan is never larger than the scan as given.
         from .preprocess import clean_scan
-        pending = CheckedScan(raw, tf, V, F, None, None, None, np.zeros(0, bool), "", float("nan"),
-                              options=opt, label_map=lmap)
-        Vc, _, _ = clean_scan(pending)
+        Vc, _, _ = clean_scan(raw, V, opt)
         height = check_plausible_size(Vc, tf, opt.min_height, opt.max_height)
 
     area = cleaning.triangle_areas(V, F)

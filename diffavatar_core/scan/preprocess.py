@@ -165,17 +165,16 @@ def preprocess_scan(raw: RawScan, units: str = "m", up: str = "y", label=None,
                                          label_map=label_map))
 
 
-def clean_scan(checked: CheckedScan, warnings: list | None = None):
-    """Steps 1–3 of the preprocessing on a checked scan (core frame): duplicate vertices merged,
-    degenerate and duplicate triangles dropped, floating fragments dropped. Returns (V (N, 3) m,
-    F (M, 3) int64, labels (N,) or None); appends what it did to `warnings`. Raises
-    DegenerateScanError when no triangle is left. check_scan calls it too, for a scan whose
-    size looks implausible before cleaning (the size rule is the cleaned scan's)."""
-    raw, opt = checked.raw, checked.options
+def clean_scan(raw: RawScan, V0: np.ndarray, opt: ScanOptions, warnings: list | None = None):
+    """Steps 1–3 of the preprocessing: duplicate vertices merged, degenerate and duplicate
+    triangles dropped, floating fragments dropped. raw: the scan (faces, labels, source); V0:
+    its vertices in the core frame (m). Returns (V (N, 3) m, F (M, 3) int64, labels (N,) or
+    None); appends what it did to `warnings`. Raises DegenerateScanError when no triangle is
+    left. check_scan calls it too, for a scan whose size looks implausible before cleaning
+    (the size rule is the cleaned scan's)."""
     warnings = warnings if warnings is not None else []
 
-    # 1. core frame, duplicate vertices (split seams, OBJ UV splits)
-    V0 = checked.vertices  # tf.to_core(raw.vertices), computed by check_scan
+    # 1. duplicate vertices (split seams, OBJ UV splits)
     V, F, old_to_new = cleaning.merge_duplicate_vertices(V0, raw.faces, opt.merge_tolerance)
     labels = None
     if raw.labels is not None:
@@ -218,8 +217,9 @@ def preprocess_checked(checked: CheckedScan) -> ScanData:
     label, garment_type = checked.label, checked.requested_garment_type
     warnings: list[str] = []
 
-    # 1.-3. duplicate vertices, degenerate and duplicate triangles, floating fragments
-    V, F, labels = clean_scan(checked, warnings)
+    # 1.-3. duplicate vertices, degenerate and duplicate triangles, floating fragments (the
+    # scan is in the core frame already: check_scan converted it)
+    V, F, labels = clean_scan(raw, checked.vertices, opt, warnings)
     height = check_plausible_size(V, tf, opt.min_height, opt.max_height)
 
     # 4. garment region (garment-only: checked by check_scan; labels: chosen again once

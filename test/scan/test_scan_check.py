@@ -126,3 +126,25 @@ def test_error_codes_are_interface_constants():
     assert len(classes) == 15
     for cls in classes:
         assert hasattr(msgs.AvatarAssets, f"ERROR_{cls.code}"), cls
+
+
+def test_size_is_the_cleaned_scans():
+    """A far floating fragment makes the scan as given 3 m wide; cleaning drops it, so neither
+    check_scan (the node's front door) nor load_scan refuses the scan, and both give the cleaned
+    height. The same scan in mm sent as m is refused by both with one message."""
+    V, F, L, names = _sphere()
+    frag = np.array([[3.0, 0.0, 0.0], [3.01, 0.0, 0.0], [3.0, 0.01, 0.0]])
+    V2 = np.vstack([V, frag])
+    F2 = np.vstack([F, [[len(V), len(V) + 1, len(V) + 2]]])
+    L2 = np.concatenate([L, [0, 0, 0]]).astype(np.uint8)
+    s = _check(V2, F2, L2, names)
+    height = V[:, 1].max() - V[:, 1].min()
+    assert s.height_m == pytest.approx(height) and len(s.vertices) == len(V2)
+    data = sv.load_scan(s)
+    assert data.height_m == pytest.approx(height) and len(data.vertices) == len(V)
+    assert any("floating fragment" in w for w in data.warnings)
+    with pytest.raises(sv.ImplausibleSizeError) as front:
+        _check(V2 * 1000, F2, L2, names)
+    with pytest.raises(sv.ImplausibleSizeError) as core:
+        sv.load_scan({"vertices": V2 * 1000, "faces": F2, "labels": L2, "label_names": names})
+    assert str(front.value) == str(core.value) and f"{height * 1000:.4g} m tall" in str(core.value)
