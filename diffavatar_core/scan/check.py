@@ -47,7 +47,7 @@ MIN_AREA_RATIO = 1e-6
 TEMPLATE_FILE_SUFFIXES = (".obj", ".json", ".yaml", ".yml")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class CheckedScan:
     """A scan that passed check_scan, in the core frame (m, Y up), not yet cleaned.
 
@@ -60,7 +60,8 @@ class CheckedScan:
     garment-only scan: the one garment class or type its label_names name);
     garment_mask (V,) bool: vertices carrying a garment label considered (all for a
     garment-only scan); template_name: '' or as given (checked); height_m: Y extent of the
-    vertices the triangles use. The request (units, up, label, requested_garment_type,
+    vertices the triangles use (of the cleaned scan when the scan as given looked implausible
+    and was cleaned to be judged). The request (units, up, label, requested_garment_type,
     options, label_map) is kept so load_scan(checked) preprocesses exactly this scan."""
     raw: RawScan
     transform: ScanTransform
