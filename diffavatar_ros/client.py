@@ -1,7 +1,7 @@
 """Client of the asset service for capture rigs and batch jobs (`diffavatar send`).
 
-Loads scan files, validates them with the same function as the node
-(diffavatar_core.scan_validation, so a bad file is reported before anything is sent), sends
+Loads scan files, checks them with the same function as the node's front door
+(diffavatar_core.scan.check_scan, so a bad file is reported before anything is sent), sends
 them to a running diffavatar_node on its `~/scans` topic (or as `~/optimize` action goals),
 shows progress, waits for every result and writes each into OUT/<job_id>/: the CLI's files
 (diffavatar_core.pipeline.output.write_result) for a success, error.json for an error.
@@ -17,7 +17,6 @@ import time
 
 import numpy as np
 
-from diffavatar_core import scan_validation
 from diffavatar_core.config import load_config
 
 MESH_SUFFIXES = (".ply", ".obj", ".off", ".stl", ".glb", ".gltf")
@@ -188,6 +187,7 @@ def send(paths, out_dir, *, garment: str = "", units: str = "m", up_axis: str = 
     """Sends every scan, waits for the results, writes them under out_dir; returns the exit status."""
     from diffavatar_msgs.msg import AvatarAssets
     from diffavatar_core.pipeline.output import write_result
+    from diffavatar_core.scan import check_scan, scan_from_arrays
 
     from . import convert
 
@@ -198,8 +198,9 @@ def send(paths, out_dir, *, garment: str = "", units: str = "m", up_axis: str = 
         job_id = job_id_for(path, used)
         try:
             V, F, labels = load_scan(path)
-            scan_validation.validate_scan(V, F, labels, label_names, units=units, up_axis=up_axis,
-                                          garment_type=garment, template_name=template, max_vertices=max_vertices)
+            check_scan(scan_from_arrays(V, F, labels, list(label_names) or None, source=str(path)),
+                       units or "m", up_axis or "y", garment_type=garment or None, template_name=template,
+                       max_vertices=max_vertices)
         except (ValueError, OSError) as err:
             code = getattr(err, "code", "BAD_OPTION")
             _write_error(out_dir / job_id, job_id, code, convert.error_code(code), f"{path}: {err}")

@@ -7,10 +7,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from diffavatar_core.scan.frame import UNITS as _UNITS, UP_ROTATIONS as _UP_ROTATIONS
 from diffavatar_msgs.msg import SegmentedScan
 
-UNITS = ("m", "cm")
-UP_AXES = ("y", "z")
+#: The units and up axes a scan may state: those of the core's scan frame conversion.
+UNITS = tuple(_UNITS)
+UP_AXES = tuple(_UP_ROTATIONS)
 
 
 def scan_to_msg(vertices, faces, labels=None, label_names=(), *, units: str = "m", up_axis: str = "y",
@@ -48,7 +50,8 @@ def scan_to_msg(vertices, faces, labels=None, label_names=(), *, units: str = "m
 
 def msg_to_arrays(msg: SegmentedScan) -> dict:
     """Flat arrays of a SegmentedScan as numpy views, unvalidated (validation belongs to the
-    core's scan loader, which names every problem): vertices (3V,) float32, faces (3F,) uint32,
+    core's scan checks, diffavatar_core.scan.check_scan / load_scan accept this dict and name
+    every problem): vertices (3V,) float32, faces (3F,) uint32,
     labels (V,) uint8, plus the scalar fields."""
     return {
         "vertices": np.frombuffer(msg.vertices, dtype=np.float32),

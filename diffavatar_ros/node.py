@@ -11,7 +11,10 @@ Control:
   ~/cancel    std_msgs/String  job id to cancel (queued or running)
 Every result is also written to <output_dir>/<job_id>/ (the CLI's files; error.json for an
 error), so nothing is lost when nobody listens. Bad input never stops the node: it is answered
-with an error result (diffavatar_core.scan_validation decides what is bad).
+with an error result. What is bad is decided by diffavatar_core.scan, the code the recovery
+pipeline preprocesses with: its cheap checks (check_scan) run at the front door, before a job
+is queued; those that need the cleaned mesh run in the job, where a ScanError ends the job
+with its code just the same.
 
 What a job computes is the injectable `runner(scan, options, run_control) -> RecoveryResult`;
 the default is diffavatar_core.pipeline.recover, imported when the first job runs.
@@ -52,7 +55,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from std_msgs.msg import String  # noqa: E402
 
 import diffavatar_core as dc  # noqa: E402
-from diffavatar_core import scan_validation  # noqa: E402
+from diffavatar_core.scan import LabelMap, ScanError, ScanOptions, check_scan  # noqa: E402
 from diffavatar_core.config import load_config  # noqa: E402
 from diffavatar_msgs.action import OptimizeAvatar  # noqa: E402
 from diffavatar_msgs.msg import AvatarAssets, OptimizationProgress, SegmentedScan  # noqa: E402
@@ -150,7 +153,8 @@ def _safe_dir_name(job_id: str) -> str:
 
 class DiffAvatarNode(Node):
     """The asset service node. `runner(scan, options, run_control) -> RecoveryResult` is what a
-    job computes: scan is a diffavatar_core.scan_validation.Scan (metres, Y up), options
+    job computes: scan is a diffavatar_core.scan.CheckedScan (passed check_scan; vertices in
+    metres, Y up; diffavatar_core.scan.load_scan(scan) preprocesses it), options
     {"job_id", "iterations"}, run_control a RunControl. Create it on an rclpy context and spin it
     with a MultiThreadedExecutor (main() does)."""
 
@@ -175,6 +179,9 @@ class DiffAvatarNode(Node):
         self.add_on_set_parameters_callback(self._validate_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)
         self._runner = runner or default_runner
+        # what the front door checks with: the same options and label map as the preprocessing
+        self._scan_options = ScanOptions.from_config()
+        self._label_map = LabelMap.load()
         dc.set_num_threads(self.get_parameter("threads").value)
 
         # Intake (scans, cancels, goal requests) is one mutually exclusive group: submissions are
@@ -233,11 +240,9 @@ class DiffAvatarNode(Node):
         finished with its error result (it never takes a queue slot)."""
         a = convert.msg_to_arrays(msg)
         try:
-            scan = scan_validation.validate_scan(
-                a["vertices"], a["faces"], a["labels"], a["label_names"], units=a["units"], up_axis=a["up_axis"],
-                garment_type=a["garment_type"], template_name=a["template_name"],
-                max_vertices=self.get_parameter("max_vertices").value)
-        except scan_validation.ScanError as err:
+            scan = check_scan(a, options=self._scan_options, label_map=self._label_map,
+                              max_vertices=self.get_parameter("max_vertices").value)
+        except ScanError as err:
             return self._queue.reject(JobError(err.code, str(err)), job_id=msg.job_id,
                                       payload={"output_dir": self.get_parameter("output_dir").value})
         except Exception as exc:  # a bug (or MemoryError) must not take the executor down
@@ -309,7 +314,7 @@ class DiffAvatarNode(Node):
 
         try:
             return self._runner(job.payload["scan"], options, RunControl(job.cancel, report))
-        except scan_validation.ScanError as err:  # input problems found while recovering
+        except ScanError as err:  # input problems found while preprocessing in the job
             raise JobError(err.code, str(err)) from None
 
     def _publish_progress(self, job, stage, iteration, max_iterations, loss, terms, t0=None):

@@ -22,7 +22,7 @@ def register(sub) -> None:
     p.add_argument("--out", required=True, help="results go to OUT/<job_id>/ (job id: file stem + random suffix)")
     p.add_argument("--garment", default="", help="garment type (tshirt, shirt, polo, dress, skirt); "
                                                  "default: inferred from the label names")
-    p.add_argument("--units", default="m", choices=["m", "cm"], help="length unit of the scan files")
+    p.add_argument("--units", default="m", choices=["m", "cm", "mm"], help="length unit of the scan files")
     p.add_argument("--up", default="y", choices=["y", "z"], help="up axis of the scan files")
     p.add_argument("--template", default="", help="template name or file (default: the garment type's)")
     p.add_argument("--iterations", type=int, default=0, help="optimization iterations (0: the node's default)")

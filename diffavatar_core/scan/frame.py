@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import ImplausibleSizeError, ScanFormatError
+from .errors import BadOptionError, ImplausibleSizeError
 
 UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001}
 UP_ROTATIONS = {
@@ -32,12 +32,14 @@ class ScanTransform:
 
     @classmethod
     def from_options(cls, units: str = "m", up: str = "y") -> "ScanTransform":
-        u = str(units).strip().lower()
-        a = str(up).strip().lower()
+        """units: m, cm or mm; up: y or z (case and surrounding spaces ignored; empty = m / y).
+        Raises BadOptionError naming the option."""
+        u = str(units).strip().lower() or "m"
+        a = str(up).strip().lower() or "y"
         if u not in UNITS:
-            raise ScanFormatError(f"units: expected one of {', '.join(UNITS)}, got {units!r}")
+            raise BadOptionError(f"units: expected one of {', '.join(UNITS)}, got {units!r}")
         if a not in UP_ROTATIONS:
-            raise ScanFormatError(f"up axis: expected one of {', '.join(UP_ROTATIONS)}, got {up!r}")
+            raise BadOptionError(f"up axis (up_axis): expected one of {', '.join(UP_ROTATIONS)}, got {up!r}")
         return cls(UNITS[u], UP_ROTATIONS[a].copy(), u, a)
 
     def to_core(self, points) -> np.ndarray:
@@ -75,6 +77,6 @@ def check_plausible_size(V_core: np.ndarray, transform: ScanTransform, min_heigh
         hints.append(f"up={other_up} would make it {alt:.3g} m tall")
     raise ImplausibleSizeError(
         f"scan is {height:.4g} m tall (extent {ext[0]:.4g} × {ext[1]:.4g} × {ext[2]:.4g} m in "
-        f"x × y(up) × z) after converting from units={transform.units}, up={transform.up}; "
-        f"a person or garment is {min_height}–{max_height} m"
+        f"x × y(up) × z) after converting from units={transform.units}, up={transform.up}: outside "
+        f"the plausible range for a person or garment, {min_height}–{max_height} m"
         + (f" ({'; '.join(hints)})" if hints else ""))

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import (EmptyScanError, FaceIndexError, LabelError, NonFiniteError,
-                     ScanFormatError)
+                     ScanFormatError, VertexArrayError)
 
 #: PLY vertex properties read as the per-vertex label, first match wins.
 LABEL_PROPERTIES = ("label", "labels")
@@ -33,22 +33,26 @@ class RawScan:
 
 
 def _as_rows(name: str, a, dtype_kind: str) -> np.ndarray:
+    err = FaceIndexError if dtype_kind == "faces" else VertexArrayError
     try:
         arr = np.asarray(a)
     except (TypeError, ValueError) as exc:
-        raise ScanFormatError(f"{name}: not an array ({exc})") from None
-    if arr.ndim == 1 and arr.size % 3 == 0:  # flat interleaved (ROS message layout)
+        raise err(f"{name}: not an array ({exc})") from None
+    if arr.ndim == 1:  # flat interleaved (ROS message layout)
+        if arr.size % 3:
+            what = "triangles" if dtype_kind == "faces" else "xyz interleaved"
+            raise err(f"{name}: flat array length {arr.size} is not a multiple of 3 ({what})")
         arr = arr.reshape(-1, 3)
     if arr.ndim != 2 or arr.shape[1] != 3:
-        err = FaceIndexError if dtype_kind == "faces" else ScanFormatError
         raise err(f"{name}: expected shape (N, 3) or flat (3N,), got {arr.shape}")
     return arr
 
 
 def scan_from_arrays(vertices, faces, labels=None, label_names=None, source: str = "arrays") -> RawScan:
     """A RawScan from arrays: vertices (V, 3) or flat (3V,) in scan units, faces (F, 3) or flat
-    (3F,) 0-based, labels (V,) integers or None/empty (garment-only), label_names optional.
-    Raises EmptyScanError, NonFiniteError, FaceIndexError or LabelError naming the problem."""
+    (3F,) 0-based, labels (V,) integers or None/empty (garment-only), label_names optional
+    (given, every label value must index it). Raises VertexArrayError, EmptyScanError,
+    NonFiniteError, FaceIndexError or LabelError naming the problem. Cost O(V + F)."""
     V = _as_rows("vertices", vertices, "vertices")
     F = _as_rows("faces", faces, "faces")
     if V.shape[0] == 0:
@@ -56,7 +60,7 @@ def scan_from_arrays(vertices, faces, labels=None, label_names=None, source: str
     if F.shape[0] == 0:
         raise EmptyScanError(f"{source}: the scan has no triangles ({V.shape[0]} vertices)")
     if not (np.issubdtype(V.dtype, np.floating) or np.issubdtype(V.dtype, np.integer)):
-        raise ScanFormatError(f"{source}: vertices must be numeric, got dtype {V.dtype}")
+        raise VertexArrayError(f"{source}: vertices must be numbers, got dtype {V.dtype}")
     V = np.ascontiguousarray(V, dtype=np.float64)
     bad = ~np.isfinite(V).all(axis=1)
     if bad.any():
@@ -77,14 +81,20 @@ def scan_from_arrays(vertices, faces, labels=None, label_names=None, source: str
         if La.size > 0:
             La = La.reshape(-1) if La.ndim == 2 and 1 in La.shape else La
             if La.ndim != 1 or La.shape[0] != V.shape[0]:
-                raise LabelError(f"{source}: labels: expected one per vertex, shape ({V.shape[0]},), "
-                                 f"got {La.shape}")
+                raise LabelError(f"{source}: labels: {La.size} labels for {V.shape[0]} vertices: "
+                                 f"expected one per vertex, shape ({V.shape[0]},), got {La.shape} "
+                                 f"(or none for a garment-only scan)")
             if not np.issubdtype(La.dtype, np.integer):
                 if not np.issubdtype(La.dtype, np.floating) or not np.all(np.isfinite(La)) \
                         or np.any(np.mod(La, 1) != 0):
                     raise LabelError(f"{source}: labels must be integers, got dtype {La.dtype}")
             L = np.ascontiguousarray(La, dtype=np.int64)
     names = tuple(str(n) for n in label_names) if label_names else None
+    if L is not None and names is not None:
+        lo, hi = int(L.min()), int(L.max())
+        if lo < 0 or hi >= len(names):
+            raise LabelError(f"{source}: labels: values must index label_names (0..{len(names) - 1}: "
+                             f"{', '.join(names)}), got range [{lo}, {hi}]")
     return RawScan(V, F, L, names, source)
 
 

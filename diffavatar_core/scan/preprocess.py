@@ -12,11 +12,12 @@ import numpy as np
 from ..config import load_config
 from . import boundary as bnd
 from . import cleaning
-from .errors import DegenerateScanError, LabelError, NoGarmentError, ScanFormatError
+from .check import CheckedScan, check_scan, choose_garment
+from .errors import DegenerateScanError, NoGarmentError
 from .frame import ScanTransform, check_plausible_size
 from .interior import interior_samples
 from .labels import LabelMap
-from .loading import RawScan, read_scan_file, scan_from_arrays, scan_from_message
+from .loading import RawScan
 
 _MAX_LISTED = 10
 
@@ -149,38 +150,6 @@ class ScanData:
         return json.dumps(self.to_dict(points), indent=2)
 
 
-def _choose_garment(raw_labels: np.ndarray, lmap: LabelMap, label, garment_type) -> tuple[int, str]:
-    present = np.unique(raw_labels)
-    listing = ", ".join(f"{lmap.name_of(v)} ({int(v)}): {int(np.count_nonzero(raw_labels == v))}"
-                        for v in present)
-    type_class = lmap.garment_class(garment_type) if garment_type else None
-    if garment_type and type_class is None:
-        raise LabelError(f"garment type '{garment_type}' is not known (classes: "
-                         f"{', '.join(lmap.garment_openings)}; types: {', '.join(lmap.garment_types)})")
-    if label is not None:
-        value = lmap.value_of(label)
-    else:
-        garments = [int(v) for v in present if lmap.garment_class(lmap.name_of(v)) is not None]
-        if type_class is not None:
-            garments = [v for v in garments if lmap.garment_class(lmap.name_of(v)) == type_class]
-        if not garments:
-            raise NoGarmentError("no garment label present in the scan"
-                                 + (f" for garment type '{garment_type}'" if garment_type else "")
-                                 + f" (vertices per label: {listing})")
-        if len(garments) > 1:
-            raise NoGarmentError(f"several garments in the scan ({', '.join(lmap.name_of(v) for v in garments)}): "
-                                 f"choose one with label= / --label")
-        value = garments[0]
-    cls = type_class or lmap.garment_class(lmap.name_of(value))
-    if cls is None:
-        raise LabelError(f"label '{lmap.name_of(value)}' ({value}) is not a garment class "
-                         f"({', '.join(lmap.garment_openings)}): give the garment type")
-    if not np.any(raw_labels == value):
-        raise NoGarmentError(f"no vertices with label '{lmap.name_of(value)}' ({value}) "
-                             f"(vertices per label: {listing})")
-    return value, cls
-
-
 def preprocess_scan(raw: RawScan, units: str = "m", up: str = "y", label=None,
                     garment_type: str | None = None, options: ScanOptions | None = None,
                     label_map: LabelMap | None = None) -> ScanData:
@@ -188,17 +157,24 @@ def preprocess_scan(raw: RawScan, units: str = "m", up: str = "y", label=None,
 
     label: garment label (class name or value); default: the only garment label present (or
     the one matching garment_type). garment_type: e.g. 'tshirt' or a class ('upper'); required
-    for a garment-only scan (no labels). Raises a ScanError subclass naming the problem.
+    for a garment-only scan (no labels). Runs check_scan first (the checks the ROS node runs at
+    its front door), then the checks that need the cleaned mesh. Raises a ScanError subclass
+    naming the problem.
     """
-    opt = options or ScanOptions.from_config()
-    lmap = label_map or LabelMap.load()
-    if raw.label_names:
-        lmap = lmap.with_names(raw.label_names)
-    tf = ScanTransform.from_options(units, up)
-    warnings: list[str] = []
+    return preprocess_checked(check_scan(raw, units, up, label, garment_type, options=options,
+                                         label_map=label_map))
 
-    # 1. core frame, duplicate vertices (split seams, OBJ UV splits)
-    V0 = tf.to_core(raw.vertices)
+
+def clean_scan(raw: RawScan, V0: np.ndarray, opt: ScanOptions, warnings: list | None = None):
+    """Steps 1–3 of the preprocessing: duplicate vertices merged, degenerate and duplicate
+    triangles dropped, floating fragments dropped. raw: the scan (faces, labels, source); V0:
+    its vertices in the core frame (m). Returns (V (N, 3) m, F (M, 3) int64, labels (N,) or
+    None); appends what it did to `warnings`. Raises DegenerateScanError when no triangle is
+    left. check_scan calls it too, for a scan whose size looks implausible before cleaning
+    (the size rule is the cleaned scan's)."""
+    warnings = warnings if warnings is not None else []
+
+    # 1. duplicate vertices (split seams, OBJ UV splits)
     V, F, old_to_new = cleaning.merge_duplicate_vertices(V0, raw.faces, opt.merge_tolerance)
     labels = None
     if raw.labels is not None:
@@ -231,24 +207,28 @@ def preprocess_scan(raw: RawScan, units: str = "m", up: str = "y", label=None,
     V, F, kept_v = cleaning.compact(V, F, ~drop)
     if labels is not None:
         labels = labels[kept_v]
+    return V, F, labels
+
+
+def preprocess_checked(checked: CheckedScan) -> ScanData:
+    """ScanData of a scan that passed check_scan: cleaning, the checks that need the cleaned
+    mesh, garment region, openings and interior samples (the costly part)."""
+    raw, tf, opt, lmap = checked.raw, checked.transform, checked.options, checked.label_map
+    label, garment_type = checked.label, checked.requested_garment_type
+    warnings: list[str] = []
+
+    # 1.-3. duplicate vertices, degenerate and duplicate triangles, floating fragments (the
+    # scan is in the core frame already: check_scan converted it)
+    V, F, labels = clean_scan(raw, checked.vertices, opt, warnings)
     height = check_plausible_size(V, tf, opt.min_height, opt.max_height)
 
-    # 4. garment region
+    # 4. garment region (garment-only: checked by check_scan; labels: chosen again once
+    # fragments are dropped, which may have carried a second garment label)
     if labels is None:
-        if label is not None:
-            raise LabelError(f"{raw.source}: the scan has no per-vertex labels, so label={label!r} "
-                             f"cannot select a garment (give the garment type instead)")
-        if not garment_type:
-            raise NoGarmentError(f"{raw.source}: a garment-only scan (no per-vertex labels) needs "
-                                 f"the garment type (e.g. garment_type='tshirt' / --garment)")
-        cls = lmap.garment_class(garment_type)
-        if cls is None:
-            raise LabelError(f"garment type '{garment_type}' is not known (classes: "
-                             f"{', '.join(lmap.garment_openings)}; types: {', '.join(lmap.garment_types)})")
-        value = None
+        cls, value = checked.garment_class, None
         gface = np.ones(len(F), bool)
     else:
-        value, cls = _choose_garment(labels, lmap, label, garment_type)
+        value, cls, _ = choose_garment(labels, lmap, label, garment_type)
         gface = (labels[F] == value).all(axis=1)
         if not gface.any():
             raise NoGarmentError(f"{raw.source}: {int(np.count_nonzero(labels == value))} vertices carry "
@@ -284,28 +264,22 @@ def preprocess_scan(raw: RawScan, units: str = "m", up: str = "y", label=None,
                             f"{opt.interior_margin} m away from the boundary")
 
     return ScanData(V, F, labels, dict(lmap.classes), gface, gvert, value, cls,
-                    garment_type or None, boundaries, boundary_idx, [pts[i] for i in hole_ids],
+                    checked.garment_type if garment_type or labels is None else None, boundaries, boundary_idx, [pts[i] for i in hole_ids],
                     interior, tf, height, raw.source, warnings)
 
 
 def load_scan(scan, units: str = "m", up: str = "y", label=None, garment_type: str | None = None,
               options: ScanOptions | None = None, label_map: LabelMap | None = None) -> ScanData:
     """One call from input to ScanData. scan: a file path (PLY with per-vertex `label`, OBJ, ...),
-    a RawScan, a (vertices, faces[, labels]) tuple, or the dict of
-    diffavatar_ros.convert.msg_to_arrays (its units/up_axis/garment_type fill in the
-    arguments left at their defaults)."""
-    if isinstance(scan, RawScan):
-        raw = scan
-    elif isinstance(scan, (str, pathlib.Path)):
-        raw = read_scan_file(scan)
-    elif isinstance(scan, dict):
-        raw = scan_from_message(scan)
-        units = scan.get("units") or units
-        up = scan.get("up_axis") or up
-        garment_type = garment_type or scan.get("garment_type") or None
-    elif isinstance(scan, (tuple, list)) and len(scan) in (2, 3):
-        raw = scan_from_arrays(*scan)
-    else:
-        raise ScanFormatError(f"scan: expected a path, RawScan, (vertices, faces[, labels]) or a "
-                             f"message dict, got {type(scan).__name__}")
-    return preprocess_scan(raw, units, up, label, garment_type, options, label_map)
+    a RawScan, a (vertices, faces[, labels]) tuple, the dict of
+    diffavatar_ros.convert.msg_to_arrays (its units/up_axis/garment_type/template_name fill in
+    the arguments left at their defaults), or a CheckedScan (what the ROS node hands its
+    runner: preprocessed as it was checked, unless options or label_map are given)."""
+    if isinstance(scan, CheckedScan):
+        if options is None and label_map is None:
+            return preprocess_checked(scan)
+        return preprocess_checked(check_scan(scan.raw, scan.transform.units, scan.transform.up, scan.label,
+                                             scan.requested_garment_type, scan.template_name,
+                                             options=options, label_map=label_map))
+    return preprocess_checked(check_scan(scan, units, up, label, garment_type, options=options,
+                                         label_map=label_map))

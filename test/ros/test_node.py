@@ -21,7 +21,7 @@ from rcl_interfaces.srv import GetParameters
 from action_msgs.msg import GoalStatus
 from std_msgs.msg import String
 
-from diffavatar_core import scan_validation
+from diffavatar_core.scan import ScanError, check_scan, load_scan, scan_from_arrays
 from diffavatar_msgs.action import OptimizeAvatar
 from diffavatar_msgs.msg import AvatarAssets, OptimizationProgress, SegmentedScan
 from diffavatar_ros import convert
@@ -161,7 +161,7 @@ def test_topic_job_progress_result_on_disk_and_latched(setup_service, client_con
 
     # the assets are what the runner computes for the same validated input
     V, F, L, names = small_scan()
-    ref = SphereFitRunner()(scan_validation.validate_scan(V, F, L, names), {"iterations": 5, "job_id": "x"},
+    ref = SphereFitRunner()(check_scan(scan_from_arrays(V, F, L, names)), {"iterations": 5, "job_id": "x"},
                             _NullControl())
     got = convert.assets_to_arrays(res)
     np.testing.assert_allclose(got["garment_vertices"], ref.garment_vertices, rtol=1e-6, atol=1e-7)
@@ -348,14 +348,90 @@ def test_bad_input_gets_its_error_code_and_the_node_keeps_running(setup_service)
     cli.send(_msg("good-after-bad", iterations=2))
     results = cli.wait_results(len(cases) + 1)
     by_id = {r.job_id: r for r in results}
-    for job_id, _, code, words in cases:
+    for job_id, m, code, words in cases:
         r = by_id[job_id]
         assert r.error_code == getattr(AvatarAssets, f"ERROR_{code}"), (job_id, r.error_code, r.error_msg)
         assert words in r.error_msg, (job_id, r.error_msg)
         record = json.loads((pathlib.Path(r.output_dir) / "error.json").read_text())
         assert record["error"] == code and record["message"] == r.error_msg
+        # the very error the pipeline's diffavatar_core.scan.load_scan gives for the same scan
+        # (the size limit is the node's parameter, given to check_scan as the node does)
+        assert _core_error(m, max_vertices=2 * len(V) if job_id == "too_large" else None) == (code, r.error_msg)
     assert by_id["good-after-bad"].error_code == AvatarAssets.ERROR_NONE
     assert len(svc.runner.scans) == 1  # only the good scan reached the runner
+
+
+def _core_error(msg, max_vertices=None):
+    """(code, message) of the ScanError the core raises for a scan message: load_scan, the
+    pipeline's entry (check_scan when a size limit applies, which load_scan has not)."""
+    arrays = convert.msg_to_arrays(msg)
+    with pytest.raises(ScanError) as info:
+        if max_vertices is None:
+            load_scan(arrays)
+        else:
+            check_scan(arrays, max_vertices=max_vertices)
+    return info.value.code, str(info.value)
+
+
+def test_front_door_and_load_scan_give_the_same_error(ros_context, tmp_path):
+    """Every bad case through DiffAvatarNode.submit (the topic's and the action's front door,
+    no DDS) is refused before queueing with exactly the code and message of load_scan."""
+    V, F, L, names = small_scan()
+    node = DiffAvatarNode(runner=SphereFitRunner(), context=ros_context,
+                          parameter_overrides=[Parameter("output_dir", value=str(tmp_path / "out")),
+                                               Parameter("max_vertices", value=2 * len(V))])
+    try:
+        for job_id, m, code, words in _bad_cases():
+            job = node.submit(m)
+            assert job.done.wait(10) and job.state.value == "rejected", job_id
+            assert (job.error.code, job.error.message) == _core_error(
+                m, max_vertices=2 * len(V) if job_id == "too_large" else None), job_id
+            assert job.error.code == code and words in job.error.message
+            assert job.result_msg.error_code == getattr(AvatarAssets, f"ERROR_{code}")
+        assert node.queue.length == 0 and not node._runner.scans
+    finally:
+        node.destroy_node()
+
+
+class PreprocessingRunner(SphereFitRunner):
+    """SphereFitRunner after the pipeline's preprocessing of the scan it gets (load_scan of the
+    node's CheckedScan): the checks that need the cleaned mesh run here, in the job."""
+
+    def __init__(self, **kw):
+        super().__init__(**kw)
+        self.preprocessed = []
+
+    def __call__(self, scan, options, rc):
+        data = load_scan(scan)
+        self.preprocessed.append(data)
+        return super().__call__(scan, options, rc)
+
+
+def test_a_scan_bad_only_after_cleaning_fails_in_its_job_with_its_code(setup_service, tmp_path):
+    """A garment label on two isolated vertices passes the front door (a garment label is
+    present) and fails in the job's preprocessing (no whole triangle carries it): the job ends
+    with NO_GARMENT and the message of load_scan, recorded on disk; results already produced
+    stay, and the next job succeeds."""
+    runner = PreprocessingRunner()
+    svc, cli = setup_service(runner)
+    cli.send(_msg("before", iterations=2))
+    assert cli.result_for("before").error_code == AvatarAssets.ERROR_NONE
+    V, F, L, names = small_scan()
+    L = np.zeros(len(V), np.uint8)
+    L[[F[0, 0], F[200, 1]]] = 1
+    bad = convert.scan_to_msg(V, F, L, names, job_id="late-bad", iterations=2)
+    cli.send(bad)
+    cli.send(_msg("after", iterations=2))
+    res = cli.result_for("late-bad")
+    assert res.error_code == AvatarAssets.ERROR_NO_GARMENT and "no triangle has all three" in res.error_msg
+    assert _core_error(bad) == ("NO_GARMENT", res.error_msg)
+    assert svc.node.queue.get("late-bad").state.value == "failed"  # it was queued and ran
+    record = json.loads((tmp_path / "out" / "late-bad" / "error.json").read_text())
+    assert record["error"] == "NO_GARMENT" and record["message"] == res.error_msg
+    assert cli.result_for("after").error_code == AvatarAssets.ERROR_NONE
+    assert (tmp_path / "out" / "before" / "result.json").exists()
+    assert [d.garment_class for d in runner.preprocessed] == ["upper", "upper"]
+    assert [s.raw.source for s in runner.scans] == ["message before", "message after"]
 
 
 def test_status_reports_queue_current_job_and_last_error(setup_service, client_context):
@@ -365,7 +441,7 @@ def test_status_reports_queue_current_job_and_last_error(setup_service, client_c
     got = []
     cli.node.create_subscription(DiagnosticArray, f"{NS}/status", got.append, 10)
     bad = _msg("bad")
-    bad.units = "mm"
+    bad.units = "inch"
     cli.send(bad)
     cli.result_for("bad")
     cli.send(_msg("s1", iterations=1000))
@@ -557,14 +633,16 @@ def test_fuzz_1000_malformed_scans_then_a_good_one(setup_service, tmp_path):
     svc, cli = setup_service(overrides=[Parameter("queue_length", value=1000)])
     rng = np.random.default_rng(2024)
     n = 1000
-    for i in range(n):
-        cli.send(_fuzz_scan(rng, i))
+    msgs = [_fuzz_scan(rng, i) for i in range(n)]
+    for m in msgs:
+        cli.send(m)
     cli.send(_msg("good-after-fuzz", iterations=2))
     assert cli.result_for("good-after-fuzz", timeout=60).error_code == AvatarAssets.ERROR_NONE
     codes = {}
     for i in range(n):  # every bad scan was answered with an error, recorded on disk
         rec = json.loads((tmp_path / "out" / f"fuzz-{i}" / "error.json").read_text())
         assert rec["error_code"] not in (AvatarAssets.ERROR_NONE, AvatarAssets.ERROR_INTERNAL), rec
+        assert _core_error(msgs[i]) == (rec["error"], rec["message"])  # the pipeline's verdict
         codes[rec["error"]] = codes.get(rec["error"], 0) + 1
     assert len(codes) >= 9, codes
     assert len(svc.runner.scans) == 1
@@ -574,7 +652,7 @@ def test_duplicate_job_id_is_refused_and_a_rerun_replaces_the_record(setup_servi
     runner = SphereFitRunner(repeat=100)
     svc, cli = setup_service(runner)
     bad = _msg("same")
-    bad.units = "mm"
+    bad.units = "inch"
     cli.send(bad)
     assert cli.result_for("same").error_code == AvatarAssets.ERROR_BAD_OPTION
     out = tmp_path / "out" / "same"

@@ -32,13 +32,22 @@ def test_pure_round_trip_is_bit_exact():
     assert a["label_names"] == ["body", "upper", "dress"]
 
 
-@pytest.mark.parametrize("kw,match", [({"units": "mm"}, "units"), ({"up_axis": "x"}, "up_axis")])
+@pytest.mark.parametrize("kw,match", [({"units": "inch"}, "units"), ({"up_axis": "x"}, "up_axis")])
 def test_converter_rejects_bad_fields(kw, match):
     V, F, L = _scan(10)
     with pytest.raises(ValueError, match=match):
         scan_to_msg(V, F, L, **kw)
     with pytest.raises(ValueError, match="labels"):
         scan_to_msg(V, F, L[:-1])
+
+
+def test_converter_units_are_the_scan_frames():
+    """The message takes every unit and up axis the core's scan frame converts (m, cm, mm)."""
+    from diffavatar_core.scan.frame import UNITS, UP_ROTATIONS
+    V, F, L = _scan(10)
+    for units in UNITS:
+        for up in UP_ROTATIONS:
+            assert msg_to_arrays(scan_to_msg(V, F, L, units=units, up_axis=up))["units"] == units
 
 
 def test_publish_and_receive_over_dds(ros_context):
