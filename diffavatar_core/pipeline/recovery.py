@@ -146,9 +146,13 @@ def recover(scan, options=None, run_control=None, *, progress=None, cancel=None,
 
     # template + initial drape ------------------------------------------------------------------
     ctl.report("drape")
-    if opts.template:
-        g = _load_template_file(opts.template, opts.edge_length, body_vertices)
-        template_name = str(opts.template)
+    template = opts.template or getattr(scan, "template_name", "") or None   # the node's message may name one
+    if template and str(template) in TEMPLATES:
+        template_name = str(template)
+        g = make_template(template_name, landmarks=model.landmarks(body_params), edge_length=opts.edge_length)
+    elif template:
+        g = _load_template_file(template, opts.edge_length, body_vertices)
+        template_name = str(template)
     else:
         template_name = select_template(data, opts)
         g = make_template(template_name, landmarks=model.landmarks(body_params), edge_length=opts.edge_length)

@@ -674,3 +674,24 @@ def test_duplicate_job_id_is_refused_and_a_rerun_replaces_the_record(setup_servi
     cli.send(_msg("same", iterations=2))
     assert cli.result_for("same").error_code == AvatarAssets.ERROR_NONE
     assert (out / "result.json").exists() and not (out / "error.json").exists()
+
+
+def test_the_default_runner_recovers_the_sample_scan(setup_service, tmp_path):
+    """The node with its real job (diffavatar_core.pipeline.recover): the bundled sample scan sent
+    in cm gets a successful result whose fit improved, written to disk like the CLI's."""
+    from diffavatar_core.demo import SAMPLE
+    from diffavatar_core.scan import read_scan_file
+    raw = read_scan_file(SAMPLE)
+    svc, cli = setup_service(runner=None)
+    cli.send(convert.scan_to_msg(raw.vertices, raw.faces, raw.labels, (), units="cm", job_id="sample",
+                                 iterations=2))
+    res = cli.result_for("sample", timeout=1200)
+    assert res.error_code == AvatarAssets.ERROR_NONE, res.error_msg
+    assert res.garment_type == "skirt" and res.iterations == 2
+    assert res.chamfer_final_cm < res.chamfer_initial_cm
+    stages = [p.stage for p in cli.progress_of("sample")]
+    assert stages[0] == "queued" and {"body", "drape", "optimize", "metrics"} <= set(stages)
+    out = pathlib.Path(res.output_dir)
+    summary = json.loads((out / "result.json").read_text())
+    assert summary["metrics"]["chamfer_final_cm"] == pytest.approx(res.chamfer_final_cm, rel=1e-9)
+    assert {"pattern.json", "pattern.svg", "garment_draped.obj", "body.obj"} <= {p.name for p in out.iterdir()}
