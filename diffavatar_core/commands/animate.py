@@ -1,14 +1,16 @@
-"""`diffavatar animate --garment NAME --motion walk --frames N --out DIR`: drape a garment on the
-default body, then simulate it through a motion; writes the OBJ sequence, animation.glb,
-positions.npz, a contact sheet of frames and animate.json. (A recovered RESULT_DIR from the
-pipeline will be accepted once the pipeline exists.)"""
+"""`diffavatar animate [RESULT_DIR] --motion walk --frames N --out DIR`: simulate a draped garment
+through a body motion. With RESULT_DIR (a `diffavatar recover` output): the recovered pattern as
+rest shape, the recovered material and body, starting from the recovered drape (paper §5.5);
+without it: --garment, a built-in template draped on the default body. Writes the OBJ sequence,
+animation.glb, positions.npz, a contact sheet of frames and animate.json."""
 import json
 import pathlib
 
 
 def register(sub) -> None:
     from ..animate import MOTIONS
-    p = sub.add_parser("animate", help="simulate a draped garment on the default body in a motion")
+    p = sub.add_parser("animate", help="simulate recovered assets (or a template on the default body) in a motion")
+    p.add_argument("result_dir", nargs="?", default=None, help="a `diffavatar recover` output directory")
     p.add_argument("--garment", default="tshirt", help="a built-in template (diffavatar templates)")
     p.add_argument("--motion", default="walk", help=f"one of {', '.join(MOTIONS)} or a keyframe JSON file")
     p.add_argument("--frames", type=int, default=30)
@@ -33,10 +35,21 @@ def _run(args) -> int:
     out = pathlib.Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     motion = args.motion if args.motion in MOTIONS else load_keyframes(args.motion)
-    cloth, g, _ = drape_job.build(args.garment, edge=args.edge)
-    r = cloth.drape(max_steps=600, raise_on_divergence=False)
-    model = BodyModel.default()
-    params = model.zero_params()
+    if args.result_dir:
+        from ..pipeline.assets import load_result
+        assets = load_result(args.result_dir)
+        cloth, g = assets.cloth(), {"faces": assets.garment.faces}
+        model, params = assets.body_model, assets.body_params
+        # the recovered drape is an equilibrium of these assets: Newton polishes it, no XPBD settling
+        r = cloth.drape(max_steps=1, min_steps=1, raise_on_divergence=False)
+        source = str(args.result_dir)
+    else:
+        cloth, g, _ = drape_job.build(args.garment, edge=args.edge)
+        cloth.sew()
+        r = cloth.drape(max_steps=600, raise_on_divergence=False)
+        model = BodyModel.default()
+        params = model.zero_params()
+        source = args.garment
     res = animate(cloth, model, params, motion, args.frames, fps=args.fps, cycles=args.cycles)
     files = write_animation(out, res.garment, g["faces"], res.body, model.faces, fps=args.fps)
     cams = orbit_cameras([(res.body[0], model.faces), (res.garment[0], g["faces"])], views=("front",))
@@ -44,7 +57,7 @@ def _run(args) -> int:
     images = [render([(res.body[i], model.faces, (0.85, 0.7, 0.6)), (res.garment[i], g["faces"], (0.3, 0.5, 0.85))],
                      cams["front"], 192) for i in picks]
     contact_sheet(images, out / "frames.png", labels=[f"frame {i}" for i in picks])
-    info = {"garment": args.garment, "motion": args.motion, "frames": args.frames, "fps": args.fps,
+    info = {"garment": source, "motion": args.motion, "frames": args.frames, "fps": args.fps,
             "cycles": args.cycles,
             "drape_converged": r.converged, "max_penetration_mm": 1e3 * res.max_penetration,
             "max_distance_from_body_m": res.max_distance, "glb": str(files["glb"]),

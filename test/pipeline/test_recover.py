@@ -77,13 +77,21 @@ def test_objective_gradient_matches_central_differences(skirt_problem):
         assert abs(an - fd) <= 2e-3 * scale, (group, k, an, fd)
 
 
-def test_end_to_end_recovery_moves_toward_the_ground_truth(tmp_path):
+@pytest.fixture(scope="module")
+def recovered(tmp_path_factory):
+    """The bundled sample recovered with 6 iterations, written to a result directory."""
+    stages = []
+    r = recover(SAMPLE, {"units": "cm", "iterations": 6}, progress=lambda s, i, n, l, t: stages.append(s))
+    out = write_result(r, tmp_path_factory.mktemp("recovered") / "res", scan=r.scan_mesh)
+    return r, out, stages
+
+
+def test_end_to_end_recovery_moves_toward_the_ground_truth(recovered):
     """The bundled sample scan (a skirt with perturbed length and hem): a few iterations reduce
     the Chamfer distance and bring the pattern area closer to the truth; every output is
     written and physically valid."""
+    r, out, stages = recovered
     truth = json.loads(TRUTH.read_text())
-    stages = []
-    r = recover(SAMPLE, {"units": "cm", "iterations": 6}, progress=lambda s, i, n, l, t: stages.append(s))
     m = r.metrics
     assert m["chamfer_final_cm"] < 0.85 * m["chamfer_initial_cm"]
     area_gt = truth["pattern_area_m2"]
@@ -98,7 +106,6 @@ def test_end_to_end_recovery_moves_toward_the_ground_truth(tmp_path):
     R, T = r.pattern.rest_xy, r.pattern.triangles
     e1, e2 = R[T[:, 1]] - R[T[:, 0]], R[T[:, 2]] - R[T[:, 0]]
     assert np.all(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0] > 0)
-    out = write_result(r, tmp_path / "res", scan=r.scan_mesh)
     for f in ("result.json", "pattern.json", "pattern.svg", "pattern.png", "garment_rest.obj",
               "garment_draped.obj", "body.obj", "loss.png", "preview.png"):
         assert (out / f).stat().st_size > 0, f
@@ -106,6 +113,39 @@ def test_end_to_end_recovery_moves_toward_the_ground_truth(tmp_path):
     assert j["garment_type"] == "skirt" and j["template"] == "skirt"
     assert 0 < j["metrics"]["ssim"] <= 1
     assert len(j["loss_history"]) == r.iterations + 1
+
+
+def test_result_directory_reloads_as_its_own_equilibrium(recovered):
+    """The written assets (pattern.json rest shape, material, body parameters) rebuild a cloth
+    whose recovered drape is an equilibrium: no vertex moves more than 2 mm when re-solved."""
+    from diffavatar_core.pipeline.assets import load_result
+    r, out, _ = recovered
+    a = load_result(out)
+    np.testing.assert_allclose(a.body_model.pose(a.body_params), r.body_vertices, atol=1e-9)
+    np.testing.assert_allclose(a.garment.rest, r.pattern.rest_xy, atol=0)
+    cloth = a.cloth()
+    it, res = cloth.refine(keep_anchor=False, residual_tol=1e-7, refine_iterations=100)
+    assert res <= 1e-6
+    assert np.abs(np.array(cloth.x) - r.garment_vertices).max() < 2e-3
+
+
+def test_animate_a_result_directory(recovered, tmp_path):
+    """`diffavatar animate RESULT_DIR`: the recovered skirt stays on the walking recovered body."""
+    import subprocess
+    import sys
+    import trimesh
+    _, out, _ = recovered
+    anim = tmp_path / "anim"
+    p = subprocess.run([sys.executable, "-m", "diffavatar_core", "animate", str(out), "--motion", "walk",
+                        "--frames", "6", "--cycles", "0.2", "--out", str(anim)], capture_output=True, text=True,
+                       timeout=900)
+    assert p.returncode == 0, p.stderr
+    info = json.loads((anim / "animate.json").read_text())
+    assert info["drape_converged"]
+    assert info["max_penetration_mm"] <= 4.0 and info["max_distance_from_body_m"] <= 0.30
+    data = np.load(anim / "positions.npz")
+    assert data["garment"].shape[0] == 6 and np.all(np.isfinite(data["garment"]))
+    assert len(trimesh.load(anim / "animation.glb", force="scene").geometry) == 2
 
 
 def test_options_from_node_dict_and_config():

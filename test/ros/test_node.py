@@ -681,8 +681,9 @@ def test_the_default_runner_recovers_the_sample_scan(setup_service, tmp_path):
     in cm gets a successful result whose fit improved, written to disk like the CLI's."""
     from diffavatar_core.demo import SAMPLE
     from diffavatar_core.scan import read_scan_file
+    from diffavatar_ros.node import default_runner
     raw = read_scan_file(SAMPLE)
-    svc, cli = setup_service(runner=None)
+    svc, cli = setup_service(runner=default_runner)
     cli.send(convert.scan_to_msg(raw.vertices, raw.faces, raw.labels, (), units="cm", job_id="sample",
                                  iterations=2))
     res = cli.result_for("sample", timeout=1200)
