@@ -13,24 +13,72 @@
 namespace diffavatar {
 namespace {
 
-using MatXd = Eigen::MatrixXd;
+// Below this many constraints in a colour the reverse pass runs serially, as the forward sweep
+// does (xpbd_solver.cpp): on a shared, oversubscribed machine a fork/join per colour pass (tens
+// of thousands per trajectory) costs far more than the work it splits (measured: 64 made the
+// 532-vertex skirt's adjoint ~8× slower on 2 loaded cores).
+constexpr int kReverseParallelMin = 1024;
 
 template <class T>
 V3<T> var3(const RowMatX3d& X, int i, int off) {
   return {T::var(X(i, 0), off), T::var(X(i, 1), off + 1), T::var(X(i, 2), off + 2)};
 }
+inline V3<double> val3(const RowMatX3d& X, int i) { return {X(i, 0), X(i, 1), X(i, 2)}; }
+template <class T>
+T comp(const V3<T>& v, int d) {
+  return d == 0 ? v.x : (d == 1 ? v.y : v.z);
+}
 
-template <int N>
-void unpack(const std::vector<Jet<N>>& c, VecXd& C, MatXd& J, std::vector<MatXd>& H) {
-  const int m = static_cast<int>(c.size());
-  C.resize(m);
-  J.resize(m, N);
-  H.assign(m, MatXd());
-  for (int a = 0; a < m; ++a) {
-    C[a] = c[a].v;
-    J.row(a) = c[a].g.transpose();
-    H[a] = c[a].H;
+// ---- closed-form constraint values and x-gradients, generic in the scalar -------------------
+// Differentiating these once with duals gives exactly the Hessian-vector products the reverse
+// projection needs (projection_vjp.hpp).
+
+/// Stretch block (stretch_kernel.hpp): C = Green strain [ε00, ε11, ε01], g[a][k] = ∂C_a/∂x_k.
+template <class T>
+void stretch_cg(const V3<T> x[3], const T u[3][2], T C[3], V3<T> g[3][3]) {
+  T a = u[1][0] - u[0][0], b = u[2][0] - u[0][0];
+  T c = u[1][1] - u[0][1], d = u[2][1] - u[0][1];
+  T det = a * d - b * c;
+  T B00 = d / det, B01 = -b / det, B10 = -c / det, B11 = a / det;
+  V3<T> d1 = x[1] - x[0], d2 = x[2] - x[0];
+  V3<T> f0 = d1 * B00 + d2 * B10, f1 = d1 * B01 + d2 * B11;
+  C[0] = 0.5 * (dot(f0, f0) - 1.0);
+  C[1] = 0.5 * (dot(f1, f1) - 1.0);
+  C[2] = 0.5 * dot(f0, f1);
+  const T c0[3] = {-(B00 + B10), B00, B10};
+  const T c1[3] = {-(B01 + B11), B01, B11};
+  for (int k = 0; k < 3; ++k) {
+    g[0][k] = f0 * c0[k];
+    g[1][k] = f1 * c1[k];
+    g[2][k] = (f1 * c0[k] + f0 * c1[k]) * T(0.5);
   }
+}
+
+/// Hinge (bending_kernel.hpp, dihedral_gradient): θ and ∇θ; false if degenerate.
+template <class T>
+bool dihedral_cg(const V3<T>& a, const V3<T>& b, const V3<T>& c, const V3<T>& d, T* theta, V3<T> g[4]) {
+  V3<T> e = b - a;
+  T el = norm(e);
+  V3<T> n1 = cross(e, c - a), n2 = cross(d - a, e);
+  T q1 = dot(n1, n1), q2 = dot(n2, n2);
+  if (value_of(el) < 1e-12 || value_of(q1) < 1e-30 || value_of(q2) < 1e-30) return false;
+  T iel = T(1.0) / el;
+  V3<T> eh = e * iel;
+  *theta = atan2(dot(cross(n1, n2), eh), dot(n1, n2));
+  V3<T> m1 = n1 * (T(1.0) / q1), m2 = n2 * (T(1.0) / q2);
+  g[2] = m1 * (-el);
+  g[3] = m2 * (-el);
+  g[0] = m1 * (-dot(c - b, eh)) - m2 * dot(d - b, eh);
+  g[1] = m1 * dot(c - a, eh) + m2 * dot(d - a, eh);
+  return true;
+}
+
+/// Contact (contact_kernel.hpp): C = n̂·(p − b0) − h, ∇_p C = n̂, n = (b1−b0)×(b2−b0).
+template <class T>
+T contact_cg(const V3<T>& p, const V3<T>& b0, const V3<T>& b1, const V3<T>& b2, double h, V3<T>* gp) {
+  V3<T> n = cross(b1 - b0, b2 - b0);
+  *gp = n * (T(1.0) / norm(n));
+  return dot(*gp, p - b0) - h;
 }
 
 struct Adjoints {
@@ -40,135 +88,207 @@ struct Adjoints {
   RowMatX3d lam_seam;
   VecXd lam_contact;
   ControlGradient g;  // accumulated control gradient
+  RowMatX3d tri_sc;   // per-triangle contribution to dφ/dα (summed per group in colour order)
+  VecXd hinge_k;      // per-hinge contribution to dφ/dk
 };
 
-void reverse_pass(const XpbdSolver& S, const StepTape& tape, int pass, int kind, const std::vector<int>& color,
-                  double dt, Adjoints& a) {
+/// Multipliers at the start of a sweep, all constraint kinds.
+struct SweepLambda {
+  RowMatX3d tri;
+  VecXd hinge;
+  RowMatX3d seam;
+  VecXd contact;
+};
+
+void reverse_tri(const XpbdSolver& S, const RowMatX3d& x, const RowMatX3d& lam, int t, double dt2, Adjoints& a) {
   const ClothModel& m = S.model();
   const ClothControl& c = S.control();
   const RestCache& rc = S.cache();
-  const RowMatX3d& x = tape.x_before[pass];
-  const VecXd& lam = tape.lambda_before[pass];
+  int vi[3];
+  V3<double> xd[3];
+  double ud[3][2];
+  Eigen::Matrix<double, 9, 1> w, xb;
+  for (int k = 0; k < 3; ++k) {
+    int i = vi[k] = m.faces(t, k);
+    xd[k] = val3(x, i);
+    for (int d = 0; d < 2; ++d) ud[k][d] = c.rest(i, d);
+    w.segment<3>(3 * k).setConstant(m.inv_mass[i]);
+    xb.segment<3>(3 * k) = a.x.row(i).transpose();
+  }
+  double Cd[3];
+  V3<double> gd[3][3];
+  stretch_cg(xd, ud, Cd, gd);
+  Eigen::Vector3d C(Cd[0], Cd[1], Cd[2]);
+  Eigen::Matrix<double, 3, 9> G;
+  for (int q = 0; q < 3; ++q)
+    for (int k = 0; k < 3; ++k) G.block<1, 3>(q, 3 * k) << gd[q][k].x, gd[q][k].y, gd[q][k].z;
+  const double area = rc.tri[t].area;
+  Eigen::Vector3d al = c.stretch_compliance.row(m.tri_group[t]).transpose();
+  Eigen::Vector3d at = al / (area * dt2);
+  Eigen::Vector3d lm = lam.row(t).transpose();
+  Eigen::Vector3d lb = a.lam_tri.row(t).transpose();
+  auto r = block_adjoint<3, 9>(C, G, w, at, lm, false, xb, lb);
+  // z̄ = ∇ψ over z = (x (9), u (6)).
+  using D = Dual<15>;
+  V3<D> xs[3];
+  D u[3][2];
+  for (int k = 0; k < 3; ++k) {
+    xs[k] = var3<D>(x, vi[k], 3 * k);
+    for (int d = 0; d < 2; ++d) u[k][d] = D::var(ud[k][d], 9 + 2 * k + d);
+  }
+  D Cj[3];
+  V3<D> gj[3][3];
+  stretch_cg(xs, u, Cj, gj);
+  D psi = r.Cbar[0] * Cj[0] + r.Cbar[1] * Cj[1] + r.Cbar[2] * Cj[2];
+  for (int q = 0; q < 3; ++q)
+    for (int k = 0; k < 3; ++k)
+      psi = psi + r.Gbar(q, 3 * k) * gj[q][k].x + r.Gbar(q, 3 * k + 1) * gj[q][k].y + r.Gbar(q, 3 * k + 2) * gj[q][k].z;
+  // α̃_a = α_a / (Ā dt²): the compliance part is summed per group later (deterministic order);
+  // the area part goes to the rest coordinates through ∂Ā/∂u.
+  double Abar = 0.0;
+  for (int q = 0; q < 3; ++q) {
+    a.tri_sc(t, q) = r.atbar[q] / (area * dt2);
+    Abar -= r.atbar[q] * al[q] / (area * area * dt2);
+  }
+  Dual<6> uu[3][2];
+  for (int k = 0; k < 3; ++k)
+    for (int d = 0; d < 2; ++d) uu[k][d] = Dual<6>::var(ud[k][d], 2 * k + d);
+  Dual<6> Ar = rest_area(uu);
+  for (int k = 0; k < 3; ++k) {
+    int i = vi[k];
+    a.x.row(i) += psi.g.segment<3>(3 * k).transpose();
+    a.g.rest.row(i) += (psi.g.segment<2>(9 + 2 * k) + Abar * Ar.g.segment<2>(2 * k)).transpose();
+  }
+  a.lam_tri.row(t) = r.lbar.transpose();
+}
+
+void reverse_hinge(const XpbdSolver& S, const RowMatX3d& x, const VecXd& lam, int h, double dt2, Adjoints& a) {
+  const ClothModel& m = S.model();
+  const ClothControl& c = S.control();
+  const RestCache& rc = S.cache();
+  a.hinge_k[h] = 0.0;
+  double k = c.bend_stiffness[m.hinge_group[h]];
+  double kw = k * rc.hinge_weight[h];
+  if (!(kw > 0.0)) return;
+  int vi[4];
+  V3<double> xd[4];
+  Eigen::Matrix<double, 12, 1> w, xb;
+  for (int q = 0; q < 4; ++q) {
+    int i = vi[q] = m.hinges(h, q);
+    xd[q] = val3(x, i);
+    w.segment<3>(3 * q).setConstant(m.inv_mass[i]);
+    xb.segment<3>(3 * q) = a.x.row(i).transpose();
+  }
+  double th;
+  V3<double> gd[4];
+  if (!dihedral_cg(xd[0], xd[1], xd[2], xd[3], &th, gd)) return;
+  Eigen::Matrix<double, 1, 1> C, at, lm, lb;
+  C[0] = th - m.hinge_rest_angle[h];
+  Eigen::Matrix<double, 1, 12> G;
+  for (int q = 0; q < 4; ++q) G.segment<3>(3 * q) << gd[q].x, gd[q].y, gd[q].z;
+  at[0] = 1.0 / (kw * dt2);
+  lm[0] = lam[h];
+  lb[0] = a.lam_hinge[h];
+  auto r = block_adjoint<1, 12>(C, G, w, at, lm, false, xb, lb);
+  using D = Dual<12>;
+  V3<D> xs[4];
+  for (int q = 0; q < 4; ++q) xs[q] = var3<D>(x, vi[q], 3 * q);
+  D thj;
+  V3<D> gj[4];
+  dihedral_cg(xs[0], xs[1], xs[2], xs[3], &thj, gj);
+  D psi = r.Cbar[0] * thj;
+  for (int q = 0; q < 4; ++q)
+    psi = psi + r.Gbar(0, 3 * q) * gj[q].x + r.Gbar(0, 3 * q + 1) * gj[q].y + r.Gbar(0, 3 * q + 2) * gj[q].z;
+  // α̃ = 1/(k w dt²): ∂α̃/∂k = −α̃/k, ∂α̃/∂w = −α̃/w
+  Dual<8> u[4][2];
+  for (int q = 0; q < 4; ++q)
+    for (int d = 0; d < 2; ++d) u[q][d] = Dual<8>::var(c.rest(vi[q], d), 2 * q + d);
+  Dual<8> wj = hinge_weight(u[0], u[1], u[2], u[3]);
+  a.hinge_k[h] = -r.atbar[0] * at[0] / k;
+  double wbar = -r.atbar[0] * at[0] / wj.v;
+  for (int q = 0; q < 4; ++q) {
+    int i = vi[q];
+    a.x.row(i) += psi.g.segment<3>(3 * q).transpose();
+    a.g.rest.row(i) += wbar * wj.g.segment<2>(2 * q).transpose();
+  }
+  a.lam_hinge[h] = r.lbar[0];
+}
+
+// Seams: C = x_i − x_j is linear (no Hessian term): z̄ = Jᵀ C̄.
+void reverse_seam(const XpbdSolver& S, const RowMatX3d& x, const RowMatX3d& lam, int sidx, double dt2, Adjoints& a) {
+  const ClothModel& m = S.model();
+  int i = m.seams(sidx, 0), j = m.seams(sidx, 1);
+  Eigen::Vector3d C = (x.row(i) - x.row(j)).transpose();
+  Eigen::Matrix<double, 3, 6> G;
+  G.leftCols<3>().setIdentity();
+  G.rightCols<3>() = -Eigen::Matrix3d::Identity();
+  Eigen::Matrix<double, 6, 1> w, xb;
+  w.head<3>().setConstant(m.inv_mass[i]);
+  w.tail<3>().setConstant(m.inv_mass[j]);
+  xb.head<3>() = a.x.row(i).transpose();
+  xb.tail<3>() = a.x.row(j).transpose();
+  Eigen::Vector3d at = Eigen::Vector3d::Constant(m.seam_compliance / dt2);
+  Eigen::Vector3d lm = lam.row(sidx).transpose();
+  Eigen::Vector3d lb = a.lam_seam.row(sidx).transpose();
+  auto r = block_adjoint<3, 6>(C, G, w, at, lm, false, xb, lb);
+  a.x.row(i) += r.Cbar.transpose();
+  a.x.row(j) -= r.Cbar.transpose();
+  a.lam_seam.row(sidx) = r.lbar.transpose();
+}
+
+void reverse_contact(const XpbdSolver& S, const RowMatX3d& x, const VecXd& lam, const Contact& ct, int ci,
+                     double dt2, Adjoints& a) {
+  const ClothModel& m = S.model();
+  const ClothControl& c = S.control();
+  const RowMatX3d& B = c.body_vertices;
+  int bi[3];
+  for (int q = 0; q < 3; ++q) bi[q] = m.body_faces(ct.tri, q);
+  V3<double> nd;
+  double Cd = contact_cg(val3(x, ct.vertex), val3(B, bi[0]), val3(B, bi[1]), val3(B, bi[2]), m.thickness, &nd);
+  Eigen::Matrix<double, 1, 1> C, at, lm, lb;
+  C[0] = Cd;
+  Eigen::Matrix<double, 1, 3> G(nd.x, nd.y, nd.z);
+  Eigen::Vector3d w = Eigen::Vector3d::Constant(m.inv_mass[ct.vertex]);
+  Eigen::Vector3d xb = a.x.row(ct.vertex).transpose();
+  at[0] = 1.0 / (m.contact_stiffness * dt2);
+  lm[0] = lam[ci];
+  lb[0] = a.lam_contact[ci];
+  auto r = block_adjoint<1, 3>(C, G, w, at, lm, true, xb, lb);
+  using D = Dual<12>;
+  V3<D> pj = var3<D>(x, ct.vertex, 0);
+  V3<D> b[3];
+  for (int q = 0; q < 3; ++q) b[q] = var3<D>(B, bi[q], 3 + 3 * q);
+  V3<D> nj;
+  D Cj = contact_cg(pj, b[0], b[1], b[2], m.thickness, &nj);
+  D psi = r.Cbar[0] * Cj + r.Gbar(0, 0) * nj.x + r.Gbar(0, 1) * nj.y + r.Gbar(0, 2) * nj.z;
+  a.x.row(ct.vertex) += psi.g.head<3>().transpose();
+  for (int q = 0; q < 3; ++q) a.g.body_vertices.row(bi[q]) += psi.g.segment<3>(3 + 3 * q).transpose();
+  a.lam_contact[ci] = r.lbar[0];
+}
+
+/// Reverses one colour pass. Constraints of one colour share no vertex, so they are reversed in
+/// parallel; the per-group material sums are formed afterwards in colour order, so the result
+/// does not depend on the thread count.
+void reverse_pass(const XpbdSolver& S, const RowMatX3d& x, const SweepLambda& lam, const std::vector<Contact>& contacts,
+                  int kind, const std::vector<int>& color, double dt, Adjoints& a) {
+  const ClothModel& m = S.model();
   const double dt2 = dt * dt;
-  VecXd C;
-  MatXd J;
-  std::vector<MatXd> H;
-  if (kind == 0) {  // stretch triangles
-    for (int t : color) {
-      using Jt = Jet<15>;
-      V3<Jt> xs[3];
-      Jt u[3][2];
-      VecXd w(9), xb(9);
-      for (int k = 0; k < 3; ++k) {
-        int i = m.faces(t, k);
-        xs[k] = var3<Jt>(x, i, 3 * k);
-        for (int d = 0; d < 2; ++d) u[k][d] = Jt::var(c.rest(i, d), 9 + 2 * k + d);
-        w.segment<3>(3 * k).setConstant(m.inv_mass[i]);
-        xb.segment<3>(3 * k) = a.x.row(i).transpose();
-      }
-      auto e = green_strain(xs, u);
-      Jt Ar = rest_area(u);
-      unpack<15>({e[0], e[1], e[2]}, C, J, H);
-      Eigen::Vector3d al = c.stretch_compliance.row(m.tri_group[t]).transpose();
-      VecXd at = al / (rc.tri[t].area * dt2);
-      VecXd lm = lam.segment<3>(3 * t);
-      VecXd lb = a.lam_tri.row(t).transpose();
-      BlockVjp r = block_vjp(9, C, J, H, w, at, lm, false, xb, lb);
-      // α̃_a = α_a / (Ā dt²)
-      double Abar = 0.0;
-      for (int q = 0; q < 3; ++q) {
-        a.g.stretch_compliance(m.tri_group[t], q) += r.atbar[q] / (rc.tri[t].area * dt2);
-        Abar -= r.atbar[q] * al[q] / (rc.tri[t].area * rc.tri[t].area * dt2);
-      }
-      VecXd zb = r.zbar + Abar * Ar.g;
-      for (int k = 0; k < 3; ++k) {
-        int i = m.faces(t, k);
-        a.x.row(i) += zb.segment<3>(3 * k).transpose();
-        a.g.rest.row(i) += zb.segment<2>(9 + 2 * k).transpose();
-      }
-      a.lam_tri.row(t) = r.lbar.transpose();
-    }
-  } else if (kind == 1) {  // bending hinges
-    for (int h : color) {
-      double k = c.bend_stiffness[m.hinge_group[h]];
-      double kw = k * rc.hinge_weight[h];
-      if (!(kw > 0.0)) continue;
-      Vec3 P[4];
-      for (int q = 0; q < 4; ++q) P[q] = x.row(m.hinges(h, q)).transpose();
-      double th;
-      Vec3 g4[4];
-      if (!dihedral_gradient(P[0], P[1], P[2], P[3], &th, g4)) continue;
-      using Jh = Jet<12>;
-      V3<Jh> xs[4];
-      Dual<8> u[4][2];
-      VecXd w(12), xb(12);
-      for (int q = 0; q < 4; ++q) {
-        int i = m.hinges(h, q);
-        xs[q] = var3<Jh>(x, i, 3 * q);
-        for (int d = 0; d < 2; ++d) u[q][d] = Dual<8>::var(c.rest(i, d), 2 * q + d);
-        w.segment<3>(3 * q).setConstant(m.inv_mass[i]);
-        xb.segment<3>(3 * q) = a.x.row(i).transpose();
-      }
-      Jh thj = dihedral_angle(xs[0], xs[1], xs[2], xs[3]) - m.hinge_rest_angle[h];
-      Dual<8> wj = hinge_weight(u[0], u[1], u[2], u[3]);
-      unpack<12>({thj}, C, J, H);
-      VecXd at(1), lm(1), lb(1);
-      at[0] = 1.0 / (kw * dt2);
-      lm[0] = lam[h];
-      lb[0] = a.lam_hinge[h];
-      BlockVjp r = block_vjp(12, C, J, H, w, at, lm, false, xb, lb);
-      // α̃ = 1/(k w dt²): ∂α̃/∂k = −α̃/k, ∂α̃/∂w = −α̃/w
-      a.g.bend_stiffness[m.hinge_group[h]] -= r.atbar[0] * at[0] / k;
-      double wbar = -r.atbar[0] * at[0] / wj.v;
-      for (int q = 0; q < 4; ++q) {
-        int i = m.hinges(h, q);
-        a.x.row(i) += r.zbar.segment<3>(3 * q).transpose();
-        a.g.rest.row(i) += wbar * wj.g.segment<2>(2 * q).transpose();
-      }
-      a.lam_hinge[h] = r.lbar[0];
-    }
-  } else if (kind == 2) {  // seams: C = x_i − x_j
-    for (int sidx : color) {
-      int i = m.seams(sidx, 0), j = m.seams(sidx, 1);
-      C = (x.row(i) - x.row(j)).transpose();
-      J = MatXd::Zero(3, 6);
-      J.leftCols(3).setIdentity();
-      J.rightCols(3) = -Eigen::Matrix3d::Identity();
-      H.assign(3, MatXd::Zero(6, 6));
-      VecXd w(6), xb(6);
-      w.head<3>().setConstant(m.inv_mass[i]);
-      w.tail<3>().setConstant(m.inv_mass[j]);
-      xb.head<3>() = a.x.row(i).transpose();
-      xb.tail<3>() = a.x.row(j).transpose();
-      VecXd at = VecXd::Constant(3, m.seam_compliance / dt2);
-      VecXd lm = lam.segment<3>(3 * sidx);
-      VecXd lb = a.lam_seam.row(sidx).transpose();
-      BlockVjp r = block_vjp(6, C, J, H, w, at, lm, false, xb, lb);
-      a.x.row(i) += r.zbar.head<3>().transpose();
-      a.x.row(j) += r.zbar.tail<3>().transpose();
-      a.lam_seam.row(sidx) = r.lbar.transpose();
-    }
-  } else {  // contacts
-    for (int ci = 0; ci < static_cast<int>(tape.contacts.size()); ++ci) {
-      const Contact& ct = tape.contacts[ci];
-      using Jc = Jet<12>;
-      V3<Jc> pj = var3<Jc>(x, ct.vertex, 0);
-      V3<Jc> b[3];
-      for (int q = 0; q < 3; ++q) b[q] = var3<Jc>(c.body_vertices, m.body_faces(ct.tri, q), 3 + 3 * q);
-      Jc Cj = contact_gap(pj, b[0], b[1], b[2], m.thickness);
-      unpack<12>({Cj}, C, J, H);
-      VecXd w = VecXd::Constant(3, m.inv_mass[ct.vertex]);
-      VecXd xb = a.x.row(ct.vertex).transpose();
-      VecXd at(1), lm(1), lb(1);
-      at[0] = 1.0 / (m.contact_stiffness * dt2);
-      lm[0] = lam[ci];
-      lb[0] = a.lam_contact[ci];
-      BlockVjp r = block_vjp(3, C, J, H, w, at, lm, true, xb, lb);
-      a.x.row(ct.vertex) += r.zbar.head<3>().transpose();
-      for (int q = 0; q < 3; ++q)
-        a.g.body_vertices.row(m.body_faces(ct.tri, q)) += r.zbar.segment<3>(3 + 3 * q).transpose();
-      a.lam_contact[ci] = r.lbar[0];
-    }
+  const int n = static_cast<int>(color.size());
+  if (kind == 0) {
+#pragma omp parallel for schedule(static) if (n >= kReverseParallelMin)
+    for (int j = 0; j < n; ++j) reverse_tri(S, x, lam.tri, color[j], dt2, a);
+    for (int t : color)
+      for (int q = 0; q < 3; ++q) a.g.stretch_compliance(m.tri_group[t], q) += a.tri_sc(t, q);
+  } else if (kind == 1) {
+#pragma omp parallel for schedule(static) if (n >= kReverseParallelMin)
+    for (int j = 0; j < n; ++j) reverse_hinge(S, x, lam.hinge, color[j], dt2, a);
+    for (int h : color) a.g.bend_stiffness[m.hinge_group[h]] += a.hinge_k[h];
+  } else if (kind == 2) {
+#pragma omp parallel for schedule(static) if (n >= kReverseParallelMin)
+    for (int j = 0; j < n; ++j) reverse_seam(S, x, lam.seam, color[j], dt2, a);
+  } else {  // contacts share body vertices: serial
+    for (int ci = 0; ci < static_cast<int>(contacts.size()); ++ci)
+      reverse_contact(S, x, lam.contact, contacts[ci], ci, dt2, a);
   }
 }
 
@@ -194,13 +314,25 @@ void reverse_step(const XpbdSolver& S, const StepTape& tape, const SimParams& p,
   const std::vector<int> none;
   for (int it = p.iterations - 1; it >= 0; --it) {
     int pass = (it + 1) * per_sweep - 1;
-    reverse_pass(S, tape, pass--, 3, none, dt, a);
+    SweepLambda lam;
+    {
+      // Every constraint is projected once per sweep, so the multipliers before its pass are
+      // those at the sweep start, which the tape holds as the first pass's record of each kind.
+      const int base = it * per_sweep;
+      const int nt = static_cast<int>(m.tri_colors.size()), nh = static_cast<int>(m.hinge_colors.size());
+      const int ns = static_cast<int>(m.seam_colors.size());
+      lam.tri = Eigen::Map<const RowMatX3d>(tape.lambda_before[base].data(), m.faces.rows(), 3);
+      lam.hinge = tape.lambda_before[base + nt];
+      lam.seam = Eigen::Map<const RowMatX3d>(tape.lambda_before[base + nt + nh].data(), m.seams.rows(), 3);
+      lam.contact = tape.lambda_before[base + nt + nh + ns];
+    }
+    reverse_pass(S, tape.x_before[pass--], lam, tape.contacts, 3, none, dt, a);
     for (int k = static_cast<int>(m.seam_colors.size()) - 1; k >= 0; --k)
-      reverse_pass(S, tape, pass--, 2, m.seam_colors[k], dt, a);
+      reverse_pass(S, tape.x_before[pass--], lam, tape.contacts, 2, m.seam_colors[k], dt, a);
     for (int k = static_cast<int>(m.hinge_colors.size()) - 1; k >= 0; --k)
-      reverse_pass(S, tape, pass--, 1, m.hinge_colors[k], dt, a);
+      reverse_pass(S, tape.x_before[pass--], lam, tape.contacts, 1, m.hinge_colors[k], dt, a);
     for (int k = static_cast<int>(m.tri_colors.size()) - 1; k >= 0; --k)
-      reverse_pass(S, tape, pass--, 0, m.tri_colors[k], dt, a);
+      reverse_pass(S, tape.x_before[pass--], lam, tape.contacts, 0, m.tri_colors[k], dt, a);
   }
   // Prediction: x̃ = x + dt (decay v + dt g) for free vertices; pinned stay.
   RowMatX3d vb = RowMatX3d::Zero(nv, 3);
@@ -239,6 +371,8 @@ TrajectoryGradient trajectory_adjoint(XpbdSolver& S, const ClothState& start, co
   a.g.stretch_compliance = RowMatX3d::Zero(m.num_groups, 3);
   a.g.bend_stiffness = VecXd::Zero(m.num_groups);
   a.g.body_vertices = RowMatX3d::Zero(S.control().body_vertices.rows(), 3);
+  a.tri_sc = RowMatX3d::Zero(m.faces.rows(), 3);
+  a.hinge_k = VecXd::Zero(m.hinges.rows());
   double peak = 0.0, base = ckpt.size() * 2 * mb(start.x);
   for (int seg = static_cast<int>(ckpt.size()) - 1; seg >= 0; --seg) {
     int t_begin = seg * k, t_end = std::min(steps, t_begin + k);
