@@ -33,13 +33,11 @@ T comp(const V3<T>& v, int d) {
 // Differentiating these once with duals gives exactly the Hessian-vector products the reverse
 // projection needs (projection_vjp.hpp).
 
-/// Stretch block (stretch_kernel.hpp): C = Green strain [ε00, ε11, ε01], g[a][k] = ∂C_a/∂x_k.
+/// Stretch block (stretch_kernel.hpp): C = Green strain [ε00, ε11, ε01] with B = D̄⁻¹ given as
+/// (B00, B01, B10, B11), and g[a][k] = ∂C_a/∂x_k.
 template <class T>
-void stretch_cg(const V3<T> x[3], const T u[3][2], T C[3], V3<T> g[3][3]) {
-  T a = u[1][0] - u[0][0], b = u[2][0] - u[0][0];
-  T c = u[1][1] - u[0][1], d = u[2][1] - u[0][1];
-  T det = a * d - b * c;
-  T B00 = d / det, B01 = -b / det, B10 = -c / det, B11 = a / det;
+void stretch_cg(const V3<T> x[3], const T B[4], T C[3], V3<T> g[3][3]) {
+  const T &B00 = B[0], &B01 = B[1], &B10 = B[2], &B11 = B[3];
   V3<T> d1 = x[1] - x[0], d2 = x[2] - x[0];
   V3<T> f0 = d1 * B00 + d2 * B10, f1 = d1 * B01 + d2 * B11;
   C[0] = 0.5 * (dot(f0, f0) - 1.0);
@@ -52,6 +50,18 @@ void stretch_cg(const V3<T> x[3], const T u[3][2], T C[3], V3<T> g[3][3]) {
     g[1][k] = f1 * c1[k];
     g[2][k] = (f1 * c0[k] + f0 * c1[k]) * T(0.5);
   }
+}
+
+/// B = D̄⁻¹ from the rest corners u (stretch_kernel.hpp, green_strain), as (B00, B01, B10, B11).
+template <class T>
+void rest_inverse(const T u[3][2], T B[4]) {
+  T a = u[1][0] - u[0][0], b = u[2][0] - u[0][0];
+  T c = u[1][1] - u[0][1], d = u[2][1] - u[0][1];
+  T det = a * d - b * c;
+  B[0] = d / det;
+  B[1] = -b / det;
+  B[2] = -c / det;
+  B[3] = a / det;
 }
 
 /// Hinge (bending_kernel.hpp, dihedral_gradient): θ and ∇θ; false if degenerate.
@@ -81,7 +91,43 @@ T contact_cg(const V3<T>& p, const V3<T>& b0, const V3<T>& b1, const V3<T>& b2, 
   return dot(*gp, p - b0) - h;
 }
 
+/// Derivatives of the rest-shape quantities w.r.t. the rest coordinates u; constant during one
+/// adjoint call (the control is fixed), so computed once instead of once per projection.
+struct RestDerivs {
+  std::vector<Eigen::Matrix<double, 4, 6>> dB;  // ∂(B00, B01, B10, B11)/∂(u0, u1, u2) per triangle
+  std::vector<Eigen::Matrix<double, 6, 1>> dA;  // ∂Ā/∂u per triangle
+  std::vector<Eigen::Matrix<double, 8, 1>> dw;  // ∂w/∂u per hinge
+  VecXd w;                                      // hinge weight (as from hinge_weight)
+
+  explicit RestDerivs(const XpbdSolver& S) {
+    const ClothModel& m = S.model();
+    const RowMatX2d& rest = S.control().rest;
+    const int nf = static_cast<int>(m.faces.rows()), nh = static_cast<int>(m.hinges.rows());
+    dB.resize(nf);
+    dA.resize(nf);
+    for (int t = 0; t < nf; ++t) {
+      Dual<6> u[3][2], B[4];
+      for (int k = 0; k < 3; ++k)
+        for (int d = 0; d < 2; ++d) u[k][d] = Dual<6>::var(rest(m.faces(t, k), d), 2 * k + d);
+      rest_inverse(u, B);
+      for (int q = 0; q < 4; ++q) dB[t].row(q) = B[q].g.transpose();
+      dA[t] = rest_area(u).g;
+    }
+    dw.resize(nh);
+    w.resize(nh);
+    for (int h = 0; h < nh; ++h) {
+      Dual<8> u[4][2];
+      for (int q = 0; q < 4; ++q)
+        for (int d = 0; d < 2; ++d) u[q][d] = Dual<8>::var(rest(m.hinges(h, q), d), 2 * q + d);
+      Dual<8> wj = hinge_weight(u[0], u[1], u[2], u[3]);
+      w[h] = wj.v;
+      dw[h] = wj.g;
+    }
+  }
+};
+
 struct Adjoints {
+  const RestDerivs* rd = nullptr;
   RowMatX3d x;        // adjoint of positions
   RowMatX3d lam_tri;  // adjoints of the multipliers of the current step
   VecXd lam_hinge;
@@ -100,24 +146,26 @@ struct SweepLambda {
   VecXd contact;
 };
 
+// z̄ = ∇_z ψ (projection_vjp.hpp) in closed form. The rest-coordinate rows: ψ depends on u only
+// through B = D̄⁻¹ (4 numbers), so ∂ψ/∂B times the cached ∂B/∂u.
 void reverse_tri(const XpbdSolver& S, const RowMatX3d& x, const RowMatX3d& lam, int t, double dt2, Adjoints& a) {
   const ClothModel& m = S.model();
   const ClothControl& c = S.control();
   const RestCache& rc = S.cache();
   int vi[3];
   V3<double> xd[3];
-  double ud[3][2];
   Eigen::Matrix<double, 9, 1> w, xb;
   for (int k = 0; k < 3; ++k) {
     int i = vi[k] = m.faces(t, k);
     xd[k] = val3(x, i);
-    for (int d = 0; d < 2; ++d) ud[k][d] = c.rest(i, d);
     w.segment<3>(3 * k).setConstant(m.inv_mass[i]);
     xb.segment<3>(3 * k) = a.x.row(i).transpose();
   }
+  const Eigen::Matrix2d& Bm = rc.tri[t].B;
+  const double Bd[4] = {Bm(0, 0), Bm(0, 1), Bm(1, 0), Bm(1, 1)};
   double Cd[3];
   V3<double> gd[3][3];
-  stretch_cg(xd, ud, Cd, gd);
+  stretch_cg(xd, Bd, Cd, gd);
   Eigen::Vector3d C(Cd[0], Cd[1], Cd[2]);
   Eigen::Matrix<double, 3, 9> G;
   for (int q = 0; q < 3; ++q)
@@ -128,21 +176,41 @@ void reverse_tri(const XpbdSolver& S, const RowMatX3d& x, const RowMatX3d& lam, 
   Eigen::Vector3d lm = lam.row(t).transpose();
   Eigen::Vector3d lb = a.lam_tri.row(t).transpose();
   auto r = block_adjoint<3, 9>(C, G, w, at, lm, false, xb, lb);
-  // z̄ = ∇ψ over z = (x (9), u (6)).
-  using D = Dual<15>;
-  V3<D> xs[3];
-  D u[3][2];
+  // ψ = C̄·C + f0·(P0 + ½Q1) + f1·(P1 + ½Q0) with P0 = Σ_k c0_k Ḡ_0k, P1 = Σ_k c1_k Ḡ_1k,
+  // Q0 = Σ_k c0_k Ḡ_2k, Q1 = Σ_k c1_k Ḡ_2k (Ḡ_ak the 3-block of row a for corner k), since
+  // ∇_k C_0 = c0_k f0, ∇_k C_1 = c1_k f1, ∇_k C_2 = ½(c0_k f1 + c1_k f0). f0, f1 and c0, c1 are
+  // linear in x and in B respectively, so its gradients are closed-form:
+  //   ∂ψ/∂x_k = (Gᵀ C̄)_k + c0_k (P0 + ½Q1) + c1_k (P1 + ½Q0),
+  //   ∂ψ/∂B via ∂f0 = d1 ∂B00 + d2 ∂B10, ∂f1 = d1 ∂B01 + d2 ∂B11 and ∂(Σ_k c_k V_k)/∂B = V_1 − V_0
+  //   or V_2 − V_0 (E_a1, E_a2 below).
+  const double c0[3] = {-(Bd[0] + Bd[2]), Bd[0], Bd[2]};
+  const double c1[3] = {-(Bd[1] + Bd[3]), Bd[1], Bd[3]};
+  auto blk = [&](int q, int k) -> Eigen::Vector3d { return r.Gbar.block<1, 3>(q, 3 * k).transpose(); };
+  Eigen::Vector3d P0 = Eigen::Vector3d::Zero(), P1 = P0, Q0 = P0, Q1 = P0;
   for (int k = 0; k < 3; ++k) {
-    xs[k] = var3<D>(x, vi[k], 3 * k);
-    for (int d = 0; d < 2; ++d) u[k][d] = D::var(ud[k][d], 9 + 2 * k + d);
+    P0 += c0[k] * blk(0, k);
+    P1 += c1[k] * blk(1, k);
+    Q0 += c0[k] * blk(2, k);
+    Q1 += c1[k] * blk(2, k);
   }
-  D Cj[3];
-  V3<D> gj[3][3];
-  stretch_cg(xs, u, Cj, gj);
-  D psi = r.Cbar[0] * Cj[0] + r.Cbar[1] * Cj[1] + r.Cbar[2] * Cj[2];
-  for (int q = 0; q < 3; ++q)
-    for (int k = 0; k < 3; ++k)
-      psi = psi + r.Gbar(q, 3 * k) * gj[q][k].x + r.Gbar(q, 3 * k + 1) * gj[q][k].y + r.Gbar(q, 3 * k + 2) * gj[q][k].z;
+  const Eigen::Vector3d R0 = P0 + 0.5 * Q1, R1 = P1 + 0.5 * Q0;
+  Eigen::Matrix<double, 9, 1> zx = G.transpose() * r.Cbar;
+  for (int k = 0; k < 3; ++k) zx.segment<3>(3 * k) += c0[k] * R0 + c1[k] * R1;
+  const Eigen::Vector3d x0(xd[0].x, xd[0].y, xd[0].z);
+  const Eigen::Vector3d d1 = Eigen::Vector3d(xd[1].x, xd[1].y, xd[1].z) - x0;
+  const Eigen::Vector3d d2 = Eigen::Vector3d(xd[2].x, xd[2].y, xd[2].z) - x0;
+  const Eigen::Vector3d f0 = d1 * Bd[0] + d2 * Bd[2], f1 = d1 * Bd[1] + d2 * Bd[3];
+  const Eigen::Vector3d E01 = blk(0, 1) - blk(0, 0), E02 = blk(0, 2) - blk(0, 0);
+  const Eigen::Vector3d E11 = blk(1, 1) - blk(1, 0), E12 = blk(1, 2) - blk(1, 0);
+  const Eigen::Vector3d E21 = blk(2, 1) - blk(2, 0), E22 = blk(2, 2) - blk(2, 0);
+  // vectors multiplying d1/d2 in ∂ψ/∂B: C̄0 f0 + ½C̄2 f1 + R0 (B00, B10) and C̄1 f1 + ½C̄2 f0 + R1 (B01, B11)
+  const Eigen::Vector3d S0 = r.Cbar[0] * f0 + 0.5 * r.Cbar[2] * f1 + R0;
+  const Eigen::Vector3d S1 = r.Cbar[1] * f1 + 0.5 * r.Cbar[2] * f0 + R1;
+  Eigen::Matrix<double, 4, 1> psiB;
+  psiB[0] = d1.dot(S0) + f0.dot(E01) + 0.5 * f1.dot(E21);  // B00
+  psiB[1] = d1.dot(S1) + f1.dot(E11) + 0.5 * f0.dot(E21);  // B01
+  psiB[2] = d2.dot(S0) + f0.dot(E02) + 0.5 * f1.dot(E22);  // B10
+  psiB[3] = d2.dot(S1) + f1.dot(E12) + 0.5 * f0.dot(E22);  // B11
   // α̃_a = α_a / (Ā dt²): the compliance part is summed per group later (deterministic order);
   // the area part goes to the rest coordinates through ∂Ā/∂u.
   double Abar = 0.0;
@@ -150,18 +218,17 @@ void reverse_tri(const XpbdSolver& S, const RowMatX3d& x, const RowMatX3d& lam, 
     a.tri_sc(t, q) = r.atbar[q] / (area * dt2);
     Abar -= r.atbar[q] * al[q] / (area * area * dt2);
   }
-  Dual<6> uu[3][2];
-  for (int k = 0; k < 3; ++k)
-    for (int d = 0; d < 2; ++d) uu[k][d] = Dual<6>::var(ud[k][d], 2 * k + d);
-  Dual<6> Ar = rest_area(uu);
+  const Eigen::Matrix<double, 6, 1> zu = a.rd->dB[t].transpose() * psiB + Abar * a.rd->dA[t];
   for (int k = 0; k < 3; ++k) {
     int i = vi[k];
-    a.x.row(i) += psi.g.segment<3>(3 * k).transpose();
-    a.g.rest.row(i) += (psi.g.segment<2>(9 + 2 * k) + Abar * Ar.g.segment<2>(2 * k)).transpose();
+    a.x.row(i) += zx.segment<3>(3 * k).transpose();
+    a.g.rest.row(i) += zu.segment<2>(2 * k).transpose();
   }
   a.lam_tri.row(t) = r.lbar.transpose();
 }
 
+// The hinge angle depends on x only (the rest shape enters through the weight w in α̃), so
+// z̄ = Gᵀ C̄ + D(∇θ)[Ḡ]: one tangent through the closed-form ∇θ.
 void reverse_hinge(const XpbdSolver& S, const RowMatX3d& x, const VecXd& lam, int h, double dt2, Adjoints& a) {
   const ClothModel& m = S.model();
   const ClothControl& c = S.control();
@@ -190,26 +257,24 @@ void reverse_hinge(const XpbdSolver& S, const RowMatX3d& x, const VecXd& lam, in
   lm[0] = lam[h];
   lb[0] = a.lam_hinge[h];
   auto r = block_adjoint<1, 12>(C, G, w, at, lm, false, xb, lb);
-  using D = Dual<12>;
+  using D = Dual<1>;
   V3<D> xs[4];
-  for (int q = 0; q < 4; ++q) xs[q] = var3<D>(x, vi[q], 3 * q);
+  for (int q = 0; q < 4; ++q) {
+    xs[q] = {D(xd[q].x), D(xd[q].y), D(xd[q].z)};
+    xs[q].x.g[0] = r.Gbar(0, 3 * q);
+    xs[q].y.g[0] = r.Gbar(0, 3 * q + 1);
+    xs[q].z.g[0] = r.Gbar(0, 3 * q + 2);
+  }
   D thj;
   V3<D> gj[4];
   dihedral_cg(xs[0], xs[1], xs[2], xs[3], &thj, gj);
-  D psi = r.Cbar[0] * thj;
-  for (int q = 0; q < 4; ++q)
-    psi = psi + r.Gbar(0, 3 * q) * gj[q].x + r.Gbar(0, 3 * q + 1) * gj[q].y + r.Gbar(0, 3 * q + 2) * gj[q].z;
   // α̃ = 1/(k w dt²): ∂α̃/∂k = −α̃/k, ∂α̃/∂w = −α̃/w
-  Dual<8> u[4][2];
-  for (int q = 0; q < 4; ++q)
-    for (int d = 0; d < 2; ++d) u[q][d] = Dual<8>::var(c.rest(vi[q], d), 2 * q + d);
-  Dual<8> wj = hinge_weight(u[0], u[1], u[2], u[3]);
   a.hinge_k[h] = -r.atbar[0] * at[0] / k;
-  double wbar = -r.atbar[0] * at[0] / wj.v;
+  double wbar = -r.atbar[0] * at[0] / a.rd->w[h];
   for (int q = 0; q < 4; ++q) {
     int i = vi[q];
-    a.x.row(i) += psi.g.segment<3>(3 * q).transpose();
-    a.g.rest.row(i) += wbar * wj.g.segment<2>(2 * q).transpose();
+    a.x.row(i) += (r.Cbar[0] * G.segment<3>(3 * q) + Eigen::RowVector3d(gj[q].x.g[0], gj[q].y.g[0], gj[q].z.g[0]));
+    a.g.rest.row(i) += wbar * a.rd->dw[h].segment<2>(2 * q).transpose();
   }
   a.lam_hinge[h] = r.lbar[0];
 }
@@ -372,6 +437,8 @@ TrajectoryGradient trajectory_adjoint(XpbdSolver& S, const ClothState& start, co
   a.g.bend_stiffness = VecXd::Zero(m.num_groups);
   a.g.body_vertices = RowMatX3d::Zero(S.control().body_vertices.rows(), 3);
   a.tri_sc = RowMatX3d::Zero(m.faces.rows(), 3);
+  const RestDerivs rd(S);
+  a.rd = &rd;
   a.hinge_k = VecXd::Zero(m.hinges.rows());
   double peak = 0.0, base = ckpt.size() * 2 * mb(start.x);
   for (int seg = static_cast<int>(ckpt.size()) - 1; seg >= 0; --seg) {
