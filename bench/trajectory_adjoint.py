@@ -34,7 +34,7 @@ def main():
     f, a = min(fwd), min(adj)
     out = dict(vertices=int(cloth.model.num_vertices), steps=steps, iterations=p.iterations, checkpoint_every=k,
                forward_s=f, trajectory_adjoint_s=a, trajectory_over_forward=a / f,
-               peak_tape_mb=res["peak_tape_mb"],
+               peak_tape_mb=res["peak_tape_mb"], step_tape_mb=res.get("step_tape_mb"),
                grad_norm=dict(rest=float(np.linalg.norm(res["rest"])), x0=float(np.linalg.norm(res["x0"])),
                               body=float(np.linalg.norm(res["body_vertices"]))))
     print(json.dumps(out, indent=1))

@@ -358,8 +358,12 @@ void reverse_pass(const XpbdSolver& S, const RowMatX3d& x, const SweepLambda& la
 }
 
 // Reverses one recorded step: on entry a.x holds dφ/dx after the step and vbar dφ/dv after it;
-// on exit a.x and vbar hold the adjoints at the step's start.
-void reverse_step(const XpbdSolver& S, const StepTape& tape, const SimParams& p, Adjoints& a, RowMatX3d& vbar) {
+// on exit a.x and vbar hold the adjoints at the step's start. Each sweep is first replayed from
+// its recorded start (positions and multipliers) to recover the positions before every colour
+// pass (one sweep's worth, in `sw`), then reversed pass by pass. The replay uses the solver's
+// contacts, which are those of the step just recorded.
+void reverse_step(XpbdSolver& S, const StepTape& tape, const SimParams& p, Adjoints& a, RowMatX3d& vbar,
+                  SweepTape& sw) {
   const ClothModel& m = S.model();
   const int nv = m.num_vertices;
   const double dt = p.dt, decay = std::exp(-p.damping * p.dt);
@@ -369,35 +373,44 @@ void reverse_step(const XpbdSolver& S, const StepTape& tape, const SimParams& p,
     a.x.row(i) += vbar.row(i) / dt;
     xprev_bar.row(i) -= vbar.row(i) / dt;
   }
-  a.lam_tri = RowMatX3d::Zero(m.faces.rows(), 3);
-  a.lam_hinge = VecXd::Zero(m.hinges.rows());
-  a.lam_seam = RowMatX3d::Zero(m.seams.rows(), 3);
-  a.lam_contact = VecXd::Zero(tape.contacts.size());
+  const Eigen::Index nf = m.faces.rows(), nh = m.hinges.rows(), ns = m.seams.rows();
+  const Eigen::Index nc = static_cast<Eigen::Index>(tape.contacts.size());
+  a.lam_tri = RowMatX3d::Zero(nf, 3);
+  a.lam_hinge = VecXd::Zero(nh);
+  a.lam_seam = RowMatX3d::Zero(ns, 3);
+  a.lam_contact = VecXd::Zero(nc);
   const int per_sweep = static_cast<int>(m.tri_colors.size() + m.hinge_colors.size() + m.seam_colors.size()) + 1;
-  if (static_cast<int>(tape.x_before.size()) != per_sweep * p.iterations)
+  if (static_cast<int>(tape.x_sweep.size()) != p.iterations || tape.lambda_sweep.size() != tape.x_sweep.size() ||
+      S.contacts().size() != tape.contacts.size())
     throw std::logic_error("trajectory adjoint: tape does not match the sweep structure");
   const std::vector<int> none;
+  ClothState q;
+  SweepLambda lam;
   for (int it = p.iterations - 1; it >= 0; --it) {
-    int pass = (it + 1) * per_sweep - 1;
-    SweepLambda lam;
-    {
-      // Every constraint is projected once per sweep, so the multipliers before its pass are
-      // those at the sweep start, which the tape holds as the first pass's record of each kind.
-      const int base = it * per_sweep;
-      const int nt = static_cast<int>(m.tri_colors.size()), nh = static_cast<int>(m.hinge_colors.size());
-      const int ns = static_cast<int>(m.seam_colors.size());
-      lam.tri = Eigen::Map<const RowMatX3d>(tape.lambda_before[base].data(), m.faces.rows(), 3);
-      lam.hinge = tape.lambda_before[base + nt];
-      lam.seam = Eigen::Map<const RowMatX3d>(tape.lambda_before[base + nt + nh].data(), m.seams.rows(), 3);
-      lam.contact = tape.lambda_before[base + nt + nh + ns];
-    }
-    reverse_pass(S, tape.x_before[pass--], lam, tape.contacts, 3, none, dt, a);
+    // Every constraint is projected once per sweep, so the multipliers before its pass are
+    // those at the sweep start.
+    const VecXd& L = tape.lambda_sweep[it];
+    if (L.size() != 3 * nf + nh + 3 * ns + nc) throw std::logic_error("trajectory adjoint: multiplier tape size");
+    lam.tri = Eigen::Map<const RowMatX3d>(L.data(), nf, 3);
+    lam.hinge = L.segment(3 * nf, nh);
+    lam.seam = Eigen::Map<const RowMatX3d>(L.data() + 3 * nf + nh, ns, 3);
+    lam.contact = L.tail(nc);
+    q.x = tape.x_sweep[it];
+    q.lambda_tri = lam.tri;
+    q.lambda_hinge = lam.hinge;
+    q.lambda_seam = lam.seam;
+    q.lambda_contact = lam.contact;
+    S.sweep(q, dt, &sw);
+    if (static_cast<int>(sw.x_before.size()) != per_sweep)
+      throw std::logic_error("trajectory adjoint: sweep replay does not match the sweep structure");
+    int pass = per_sweep - 1;
+    reverse_pass(S, sw.x_before[pass--], lam, tape.contacts, 3, none, dt, a);
     for (int k = static_cast<int>(m.seam_colors.size()) - 1; k >= 0; --k)
-      reverse_pass(S, tape.x_before[pass--], lam, tape.contacts, 2, m.seam_colors[k], dt, a);
+      reverse_pass(S, sw.x_before[pass--], lam, tape.contacts, 2, m.seam_colors[k], dt, a);
     for (int k = static_cast<int>(m.hinge_colors.size()) - 1; k >= 0; --k)
-      reverse_pass(S, tape.x_before[pass--], lam, tape.contacts, 1, m.hinge_colors[k], dt, a);
+      reverse_pass(S, sw.x_before[pass--], lam, tape.contacts, 1, m.hinge_colors[k], dt, a);
     for (int k = static_cast<int>(m.tri_colors.size()) - 1; k >= 0; --k)
-      reverse_pass(S, tape.x_before[pass--], lam, tape.contacts, 0, m.tri_colors[k], dt, a);
+      reverse_pass(S, sw.x_before[pass--], lam, tape.contacts, 0, m.tri_colors[k], dt, a);
   }
   // Prediction: x̃ = x + dt (decay v + dt g) for free vertices; pinned stay.
   RowMatX3d vb = RowMatX3d::Zero(nv, 3);
@@ -407,7 +420,10 @@ void reverse_step(const XpbdSolver& S, const StepTape& tape, const SimParams& p,
   vbar = vb;
 }
 
-double mb(const RowMatX3d& a) { return a.size() * 8.0 / 1048576.0; }
+template <class M>
+double mb(const M& a) {
+  return a.size() * 8.0 / 1048576.0;
+}
 
 }  // namespace
 
@@ -441,6 +457,7 @@ TrajectoryGradient trajectory_adjoint(XpbdSolver& S, const ClothState& start, co
   a.rd = &rd;
   a.hinge_k = VecXd::Zero(m.hinges.rows());
   double peak = 0.0, base = ckpt.size() * 2 * mb(start.x);
+  SweepTape sw;
   for (int seg = static_cast<int>(ckpt.size()) - 1; seg >= 0; --seg) {
     int t_begin = seg * k, t_end = std::min(steps, t_begin + k);
     std::vector<ClothState> starts;
@@ -454,10 +471,13 @@ TrajectoryGradient trajectory_adjoint(XpbdSolver& S, const ClothState& start, co
       StepTape tape;
       ClothState q = starts[t - t_begin];
       S.step(q, p, &tape);
+      reverse_step(S, tape, p, a, vbar, sw);
       double tape_mb = 0.0;
-      for (const auto& xb : tape.x_before) tape_mb += mb(xb);
+      for (const auto& xs : tape.x_sweep) tape_mb += mb(xs);
+      for (const auto& ls : tape.lambda_sweep) tape_mb += mb(ls);
+      for (const auto& xb : sw.x_before) tape_mb += mb(xb);
+      out.step_tape_mb = std::max(out.step_tape_mb, tape_mb);
       peak = std::max(peak, base + starts.size() * 2 * mb(start.x) + tape_mb);
-      reverse_step(S, tape, p, a, vbar);
       rc.report({"trajectory backward", 2L * steps - t, 2L * steps, 0.0});
     }
   }
