@@ -319,15 +319,23 @@ void reverse_contact(const XpbdSolver& S, const RowMatX3d& x, const VecXd& lam, 
   lm[0] = lam[ci];
   lb[0] = a.lam_contact[ci];
   auto r = block_adjoint<1, 3>(C, G, w, at, lm, true, xb, lb);
-  using D = Dual<12>;
-  V3<D> pj = var3<D>(x, ct.vertex, 0);
-  V3<D> b[3];
-  for (int q = 0; q < 3; ++q) b[q] = var3<D>(B, bi[q], 3 + 3 * q);
-  V3<D> nj;
-  D Cj = contact_cg(pj, b[0], b[1], b[2], m.thickness, &nj);
-  D psi = r.Cbar[0] * Cj + r.Gbar(0, 0) * nj.x + r.Gbar(0, 1) * nj.y + r.Gbar(0, 2) * nj.z;
-  a.x.row(ct.vertex) += psi.g.head<3>().transpose();
-  for (int q = 0; q < 3; ++q) a.g.body_vertices.row(bi[q]) += psi.g.segment<3>(3 + 3 * q).transpose();
+  // ψ = C̄ C + Ḡ·n̂ = n̂·v − C̄ h with v = C̄ (p − b0) + Ḡ: ∂ψ/∂p = C̄ n̂ (∇_p C = n̂ is constant in
+  // p); through n = e1 × e2 (e1 = b1 − b0, e2 = b2 − b0): y = ∂(n̂·v)/∂n = (v − n̂ (n̂·v))/|n|,
+  // ∂/∂b1 = e2 × y, ∂/∂b2 = y × e1, ∂/∂b0 = −(∂/∂b1 + ∂/∂b2) − C̄ n̂.
+  const Eigen::Vector3d pv = x.row(ct.vertex).transpose();
+  const Eigen::Vector3d b0 = B.row(bi[0]).transpose(), e1 = B.row(bi[1]).transpose() - b0,
+                        e2 = B.row(bi[2]).transpose() - b0;
+  const Eigen::Vector3d n = e1.cross(e2);
+  const double nl = n.norm();
+  const Eigen::Vector3d nh = n / nl;
+  const double cb = r.Cbar[0];
+  const Eigen::Vector3d v = cb * (pv - b0) + r.Gbar.row(0).transpose();
+  const Eigen::Vector3d y = (v - nh * nh.dot(v)) / nl;
+  const Eigen::Vector3d g1 = e2.cross(y), g2 = y.cross(e1);
+  a.x.row(ct.vertex) += cb * nh.transpose();
+  a.g.body_vertices.row(bi[0]) -= (g1 + g2 + cb * nh).transpose();
+  a.g.body_vertices.row(bi[1]) += g1.transpose();
+  a.g.body_vertices.row(bi[2]) += g2.transpose();
   a.lam_contact[ci] = r.lbar[0];
 }
 
