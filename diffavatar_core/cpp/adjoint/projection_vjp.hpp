@@ -35,8 +35,9 @@ inline BlockAdjoint<M, N> block_adjoint(const Eigen::Matrix<double, M, 1>& C, co
   MatM A = GW * G.transpose();
   A.diagonal() += at;
   const VecM r = C + at.cwiseProduct(lam);
-  Eigen::LDLT<MatM> ldlt(A);
-  VecM dl = -ldlt.solve(r);
+  // A is SPD (α̃ > 0) and at most 3×3: Eigen's closed-form inverse, as in the forward projection.
+  const MatM Ainv = A.inverse();
+  VecM dl = -(Ainv * r);
   const Eigen::Matrix<double, N, 1> s = wdof.cwiseProduct(xbar_out);
   BlockAdjoint<M, N> out;
   if (clamp_nonneg && lam[0] + dl[0] < 0.0) {
@@ -48,7 +49,7 @@ inline BlockAdjoint<M, N> block_adjoint(const Eigen::Matrix<double, M, 1>& C, co
   } else {
     const VecM dlbar = G * s + lbar_out;
     out.Gbar = dl * s.transpose();
-    const VecM u = ldlt.solve(dlbar);
+    const VecM u = Ainv * dlbar;
     const MatM Abar = -u * dl.transpose();
     out.Gbar += (Abar + Abar.transpose()) * GW;
     out.atbar = Abar.diagonal() - u.cwiseProduct(lam);

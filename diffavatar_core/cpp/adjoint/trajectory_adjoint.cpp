@@ -428,6 +428,17 @@ void reverse_step(XpbdSolver& S, const StepTape& tape, const SimParams& p, Adjoi
   vbar = vb;
 }
 
+// Checkpoints and segment starts keep positions and velocities only: a step zeroes its
+// multipliers before the first sweep, so they carry no information across steps.
+struct PosVel {
+  RowMatX3d x, v;
+};
+ClothState restore(const XpbdSolver& S, const PosVel& c) {
+  ClothState s = S.make_state(c.x);
+  s.v = c.v;
+  return s;
+}
+
 template <class M>
 double mb(const M& a) {
   return a.size() * 8.0 / 1048576.0;
@@ -443,11 +454,11 @@ TrajectoryGradient trajectory_adjoint(XpbdSolver& S, const ClothState& start, co
   if (dphi_dx.rows() != m.num_vertices || dphi_dv.rows() != m.num_vertices)
     throw std::invalid_argument("trajectory adjoint: dphi_dx and dphi_dv must be #V×3");
   // Forward with checkpoints.
-  std::vector<ClothState> ckpt;
+  std::vector<PosVel> ckpt;
   ClothState s = start;
   for (int t = 0; t < steps; ++t) {
     rc.check("trajectory adjoint (forward)");
-    if (t % k == 0) ckpt.push_back(s);
+    if (t % k == 0) ckpt.push_back({s.x, s.v});
     S.step(s, p);
     rc.report({"trajectory forward", t + 1, 2L * steps, 0.0});
   }
@@ -468,16 +479,16 @@ TrajectoryGradient trajectory_adjoint(XpbdSolver& S, const ClothState& start, co
   SweepTape sw;
   for (int seg = static_cast<int>(ckpt.size()) - 1; seg >= 0; --seg) {
     int t_begin = seg * k, t_end = std::min(steps, t_begin + k);
-    std::vector<ClothState> starts;
-    ClothState r = ckpt[seg];
+    std::vector<PosVel> starts;
+    ClothState r = restore(S, ckpt[seg]);
     for (int t = t_begin; t < t_end; ++t) {
-      starts.push_back(r);
+      starts.push_back({r.x, r.v});
       if (t + 1 < t_end) S.step(r, p);
     }
     for (int t = t_end - 1; t >= t_begin; --t) {
       rc.check("trajectory adjoint (backward)");
       StepTape tape;
-      ClothState q = starts[t - t_begin];
+      ClothState q = restore(S, starts[t - t_begin]);
       S.step(q, p, &tape);
       reverse_step(S, tape, p, a, vbar, sw);
       double tape_mb = 0.0;
