@@ -37,7 +37,8 @@ def trajectory_gradient(cloth: Cloth, steps: int, dphi_dx, dphi_dv=None, checkpo
                         contact_radius: float = 0.01, progress=None, cancel=None) -> dict:
     """dφ/dθ for φ(x_T, v_T) after `steps` XPBD steps from the cloth's current state (which is
     left unchanged). dphi_dx, dphi_dv: (V,3). Returns dict: rest, stretch_compliance,
-    bend_stiffness, body_vertices, x0 (V,3), v0 (V,3), x_final (V,3) m, peak_tape_mb, wall_s."""
+    bend_stiffness, body_vertices, x0 (V,3), v0 (V,3), x_final (V,3) m, peak_tape_mb (checkpoints +
+    one segment + one step's tape), step_tape_mb (the largest step's tape), wall_s."""
     steps = _validate.positive_int("steps", steps)
     k = _validate.positive_int("checkpoint_every", checkpoint_every)
     gx = _validate.points("dphi_dx", dphi_dx)

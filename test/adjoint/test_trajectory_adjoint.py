@@ -130,3 +130,28 @@ def test_invariants(free_sheet):
     for key in ("rest", "stretch_compliance", "bend_stiffness", "x0", "v0"):
         np.testing.assert_allclose(g2[key], -2.5 * g[key], rtol=1e-12, atol=1e-15)
     np.testing.assert_array_equal(cloth.state.x, start.x)  # the cloth's own state is untouched
+
+
+def test_progress_cancellation_and_tape_size(free_sheet):
+    """Progress is reported (rate-limited, so at least the first event) in 2T units; a cancel
+    raises Cancelled; one step's tape holds the state at each sweep start (plus one sweep's
+    positions per colour pass), not the positions before every pass of every sweep."""
+    from diffavatar_core import CancelToken, Cancelled
+    cloth, W, start, g = free_sheet
+    seen = []
+    trajectory_gradient(cloth, T, W, progress=lambda ev: seen.append((ev.stage, ev.done, ev.total)), **KW)
+    assert seen and {s for s, _, _ in seen} <= {"trajectory forward", "trajectory backward"}
+    assert all(tot == 2 * T for _, _, tot in seen)
+    token = CancelToken()
+
+    def progress(ev):
+        token.cancel()
+
+    with pytest.raises(Cancelled):
+        trajectory_gradient(cloth, T, W, progress=progress, cancel=token, **KW)
+    m = cloth.model
+    nt, nh, ns = m.num_colors
+    state_mb = (3 * m.num_vertices + 3 * len(m.faces) + len(m.hinges) + 3 * len(m.seams) + m.num_vertices) * 8 / 2**20
+    passes_mb = (nt + nh + ns + 1) * 3 * m.num_vertices * 8 / 2**20
+    assert 0 < g["step_tape_mb"] <= KW["iterations"] * state_mb + passes_mb
+    assert g["peak_tape_mb"] >= g["step_tape_mb"]

@@ -1,7 +1,9 @@
 // Trajectory adjoint (issue 4, mode 1; DiffXPBD, supplement Eq. 1–4): the exact reverse pass of
 // `steps` XPBD steps. Each step is replayed forward from its start state while recording the
-// positions and multipliers before every colour pass (StepTape), then every projection is
-// reversed (adjoint/projection_vjp.hpp), colour by colour, sweep by sweep. Memory is bounded
+// positions and multipliers at the start of every sweep (StepTape); then, sweep by sweep from
+// the last, the sweep is replayed to recover the positions before each colour pass (SweepTape)
+// and every projection is reversed (adjoint/projection_vjp.hpp), colour by colour, the
+// constraints of one colour in parallel. Memory is bounded
 // by checkpointing: the forward pass keeps the state every `checkpoint_every` steps; the
 // backward pass recomputes one segment at a time. Contacts are detected in each replayed step
 // exactly as in the forward pass (their selection is not differentiated).
@@ -18,6 +20,7 @@ struct TrajectoryGradient {
   RowMatX3d v0;             // dφ/dv at the start (per m/s)
   RowMatX3d x_final;        // positions after the steps (m)
   double peak_tape_mb = 0;  // checkpoints + one segment's step starts + one step's tape
+  double step_tape_mb = 0;  // the largest one step's tape (sweep starts + one sweep's passes)
   double wall_s = 0;
 };
 

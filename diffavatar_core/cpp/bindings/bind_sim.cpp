@@ -175,6 +175,7 @@ void bind_sim(py::module_& m) {
           d["v0"] = tg.v0;
           d["x_final"] = tg.x_final;
           d["peak_tape_mb"] = tg.peak_tape_mb;
+          d["step_tape_mb"] = tg.step_tape_mb;
           d["wall_s"] = tg.wall_s;
           return d;
         },

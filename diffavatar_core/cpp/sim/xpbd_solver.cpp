@@ -44,18 +44,19 @@ void XpbdSolver::detect_contacts(const RowMatX3d& x, const SimParams& p) {
 }
 
 namespace {
-template <class M>
-VecXd flat(const M& a) {
-  return Eigen::Map<const VecXd>(a.data(), a.size());
+void record(SweepTape* tape, std::size_t pass, const RowMatX3d& x) {
+  if (tape->x_before.size() <= pass) tape->x_before.resize(pass + 1);
+  tape->x_before[pass] = x;  // same size after the first sweep: no reallocation
 }
 }  // namespace
 
-void XpbdSolver::sweep(ClothState& s, double dt, StepTape* tape) {
+void XpbdSolver::sweep(ClothState& s, double dt, SweepTape* tape) {
+  std::size_t pass = 0;
   const ClothModel& m = model_;
   const double dt2 = dt * dt;
   RowMatX3d& x = s.x;
   for (const auto& color : m.tri_colors) {
-    if (tape) { tape->x_before.push_back(x); tape->lambda_before.push_back(flat(s.lambda_tri)); }
+    if (tape) record(tape, pass++, x);
     const int n = static_cast<int>(color.size());
 #pragma omp parallel for schedule(static) if (n >= kParallelMin)
     for (int j = 0; j < n; ++j) {
@@ -75,7 +76,7 @@ void XpbdSolver::sweep(ClothState& s, double dt, StepTape* tape) {
     }
   }
   for (const auto& color : m.hinge_colors) {
-    if (tape) { tape->x_before.push_back(x); tape->lambda_before.push_back(s.lambda_hinge); }
+    if (tape) record(tape, pass++, x);
     const int n = static_cast<int>(color.size());
 #pragma omp parallel for schedule(static) if (n >= kParallelMin)
     for (int j = 0; j < n; ++j) {
@@ -97,7 +98,7 @@ void XpbdSolver::sweep(ClothState& s, double dt, StepTape* tape) {
     }
   }
   for (const auto& color : m.seam_colors) {
-    if (tape) { tape->x_before.push_back(x); tape->lambda_before.push_back(flat(s.lambda_seam)); }
+    if (tape) record(tape, pass++, x);
     const int n = static_cast<int>(color.size());
 #pragma omp parallel for schedule(static) if (n >= kParallelMin)
     for (int j = 0; j < n; ++j) {
@@ -111,7 +112,7 @@ void XpbdSolver::sweep(ClothState& s, double dt, StepTape* tape) {
   }
   const int nc = static_cast<int>(contacts_.size());
   if (s.lambda_contact.size() != nc) s.lambda_contact = VecXd::Zero(nc);
-  if (tape) { tape->x_before.push_back(x); tape->lambda_before.push_back(s.lambda_contact); }
+  if (tape) record(tape, pass++, x);
   const double ac = 1.0 / (m.contact_stiffness * dt2);
 #pragma omp parallel for schedule(static) if (nc >= kParallelMin)
   for (int j = 0; j < nc; ++j) {
@@ -148,7 +149,24 @@ double XpbdSolver::step(ClothState& s, const SimParams& p, StepTape* tape) {
   s.lambda_seam.setZero();
   s.lambda_contact = VecXd::Zero(contacts_.size());
   if (tape) tape->contacts = contacts_;
-  for (int it = 0; it < p.iterations; ++it) sweep(s, p.dt, tape);
+  if (tape) {
+    tape->x_sweep.reserve(p.iterations);
+    tape->lambda_sweep.reserve(p.iterations);
+  }
+  const Eigen::Index nt = s.lambda_tri.size(), nh = s.lambda_hinge.size(), ns = s.lambda_seam.size();
+  for (int it = 0; it < p.iterations; ++it) {
+    if (tape) {
+      tape->x_sweep.push_back(s.x);
+      const Eigen::Index nc = s.lambda_contact.size();
+      VecXd l(nt + nh + ns + nc);
+      l.head(nt) = Eigen::Map<const VecXd>(s.lambda_tri.data(), nt);
+      l.segment(nt, nh) = s.lambda_hinge;
+      l.segment(nt + nh, ns) = Eigen::Map<const VecXd>(s.lambda_seam.data(), ns);
+      l.tail(nc) = s.lambda_contact;
+      tape->lambda_sweep.push_back(std::move(l));
+    }
+    sweep(s, p.dt);
+  }
   double vmax = 0.0;
   for (int i = 0; i < nv; ++i) {
     if (m.inv_mass[i] == 0.0) {

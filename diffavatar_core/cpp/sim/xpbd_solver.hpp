@@ -38,13 +38,21 @@ struct DrapeParams {
 };
 
 /// What the trajectory adjoint needs to replay one step backwards: the state at the start of
-/// the step, the positions and the pass's multipliers before every colour pass (in order: the
-/// triangle colours, the hinge colours, the seam colours, then the contacts) and the contacts.
+/// the step, the positions and the multipliers at the start of every sweep (the multipliers
+/// flattened as [tri (#F×3) | hinge (#H) | seam (#S×3) | contact]) and the contacts. The
+/// positions before each colour pass are not stored: the adjoint recomputes them for one sweep
+/// at a time (SweepTape), so a step's tape is O(iterations × state), not O(projections).
 struct StepTape {
   RowMatX3d x_start, v_start;
-  std::vector<RowMatX3d> x_before;
-  std::vector<VecXd> lambda_before;
+  std::vector<RowMatX3d> x_sweep;
+  std::vector<VecXd> lambda_sweep;
   std::vector<Contact> contacts;
+};
+
+/// Positions before every colour pass of one sweep, in order: the triangle colours, the hinge
+/// colours, the seam colours, then the contacts. Entries are overwritten in place when reused.
+struct SweepTape {
+  std::vector<RowMatX3d> x_before;
 };
 
 struct DrapeReport {
@@ -73,7 +81,7 @@ class XpbdSolver {
   /// One XPBD step of length p.dt. Returns the max vertex speed (m/s) after the step.
   double step(ClothState& s, const SimParams& p, StepTape* tape = nullptr);
   /// One projection sweep over all constraints (the benchmark's unit of work).
-  void sweep(ClothState& s, double dt, StepTape* tape = nullptr);
+  void sweep(ClothState& s, double dt, SweepTape* tape = nullptr);
   DrapeReport drape(ClothState& s, const SimParams& p, const DrapeParams& d, RunControl& rc);
   /// Newton refinement of s.x to ∇ₓE = 0; returns iterations used; sets residual. The anchors
   /// of the friction proxy are set to s.x unless keep_anchor (then the stored ones are reused).
