@@ -332,7 +332,7 @@ class DiffAvatarNode(Node):
         if job.state is JobState.SUCCEEDED:
             try:
                 from diffavatar_core.pipeline.output import write_result
-                write_result(job.result, out)
+                write_result(job.result, out, scan=getattr(job.result, "scan_mesh", None))
                 (out / "error.json").unlink(missing_ok=True)  # from an earlier run of this job id
             except OSError as exc:
                 self._queue.last_error = f"{job.job_id}: could not write {out}: {exc}"

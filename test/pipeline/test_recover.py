@@ -64,9 +64,9 @@ def test_objective_gradient_matches_central_differences(skirt_problem):
     _, grads, terms = phi(theta)
     assert all(np.isfinite(v) for v in terms.values())
     checks = [("handles", k) for k in rng.choice(len(theta["handles"]), 4, replace=False)]
-    checks += [("log_bend", 0), ("shape", 0), ("shape", 1)]
+    checks += [("log_bend", 0), ("shape", 0), ("shape", 1), ("pose", 0)]
     for group, k in checks:
-        h = {"handles": 1e-6, "log_bend": 1e-4, "shape": 1e-4}[group]
+        h = {"handles": 1e-6, "log_bend": 1e-4, "shape": 1e-4, "pose": 1e-5}[group]
         tp = {kk: np.array(v, float) for kk, v in theta.items()}
         tm = {kk: np.array(v, float) for kk, v in theta.items()}
         tp[group][k] += h
@@ -74,7 +74,7 @@ def test_objective_gradient_matches_central_differences(skirt_problem):
         fd = (phi(tp)[0] - phi(tm)[0]) / (2 * h)
         an = grads[group][k]
         scale = max(abs(fd), 1e-3 * np.abs(grads[group]).max(), 1e-12)
-        assert abs(an - fd) <= 2e-3 * scale, (group, k, an, fd)
+        assert abs(an - fd) <= 1e-3 * scale, (group, k, an, fd)   # measured ≤ 1.4e-4
 
 
 @pytest.fixture(scope="module")

@@ -695,4 +695,5 @@ def test_the_default_runner_recovers_the_sample_scan(setup_service, tmp_path):
     out = pathlib.Path(res.output_dir)
     summary = json.loads((out / "result.json").read_text())
     assert summary["metrics"]["chamfer_final_cm"] == pytest.approx(res.chamfer_final_cm, rel=1e-9)
-    assert {"pattern.json", "pattern.svg", "garment_draped.obj", "body.obj"} <= {p.name for p in out.iterdir()}
+    assert {"pattern.json", "pattern.svg", "garment_draped.obj", "body.obj", "preview.png"} <= {p.name for p in out.iterdir()}
+    assert 0 < summary["metrics"]["ssim"] <= 1
