@@ -83,6 +83,7 @@ class FitOptions:
     # body (a tall body under a top came out 7 cm short with 2e-6 / 5e-5)
     garment_shape_prior: float = 5e-8
     garment_pose_prior: float = 5e-6
+    multi_start_iterations: int = 12     # garment-only: iterations of each of the two starts
     seed: int = 0
 
 
@@ -151,7 +152,7 @@ class _Fitter:
         F = m.faces
         S = self.scan[idx_scan]
         tri, bary, cp = _core.closest_points_on_mesh(X, F, np.ascontiguousarray(S))
-        nf = _face_normals(X, F)[tri]
+        nf = _face_normals(X, F[tri])
         d = np.einsum("ij,ij->i", S - cp, nf)              # signed, + outside the body
         rows, res, wts, rho = [], [], [], 0.0
         if self.garment:
@@ -197,7 +198,7 @@ class _Fitter:
             u = verts if len(verts) <= o.self_penetration_samples else \
                 self.pen_rng.choice(verts, o.self_penetration_samples, replace=False)
             t2, b2, c2 = _core.closest_points_on_mesh(X, faces, np.ascontiguousarray(X[u]))
-            n2 = _face_normals(X, faces)[t2]
+            n2 = _face_normals(X, faces[t2])
             dp = np.minimum(np.einsum("ij,ij->i", X[u] - c2, n2), 0.0)
             res.append(dp)
             wts.append(np.full(len(u), gamma / len(u)))
@@ -392,20 +393,41 @@ def fit_body(scan_vertices, scan_faces=None, model: BodyModel | None = None, *, 
     starts = [initial(yaw0 + k * np.pi / 6) for k in range(12)]
     scores = [fitter.energy(q, 0.1, idx_s, idx_b) for q in starts]
     best = None
-    for k in np.argsort(scores)[:3]:
+    order = list(np.argsort(scores)[:3])
+    if garment_only:
+        # a garment's front and back look alike (trousers above all): the best yaw's opposite
+        # is always a candidate, and both go into the full fit (below)
+        order.append(int(np.argsort(scores)[0] + 6) % 12)
+    refined = []
+    for k in dict.fromkeys(order):
         q, _ = fitter.run(starts[k], 10, np.geomspace(0.15, 0.03, 10), free=free_rigid, n_scan=1500, n_body=800)
-        e = fitter.energy(q, 0.03, idx_s, idx_b)
-        if best is None or e < best[0]:
-            best = (e, q)
-    p = best[1]
+        refined.append((fitter.energy(q, 0.03, idx_s, idx_b), k, q))
+    refined.sort(key=lambda c: c[0])
     history: list = []
-    fitter.progress = progress
     # coarse to fine: the robust scale shrinks and the pose prior relaxes (a stiff skeleton
     # first, so that shape and global placement settle before distal joints are released)
     n_anneal = max(o.iterations - 8, 1)
     sig = np.geomspace(o.sigma[0], o.sigma[1], n_anneal)
     boosts = np.geomspace(o.pose_prior_boost, 1.0, n_anneal)
-    p, rms = fitter.run(p, o.iterations, sig, history=history, boosts=boosts,
+    n0 = 0
+    p = refined[0][2]
+    if garment_only:
+        # multi-start: the best placement and the best one facing the other way are fitted for
+        # the first iterations (shape and pose free) and scored by the robust energy there;
+        # the lower one goes on (the knees' and hips' limits tell front from back)
+        k0 = refined[0][1]
+        other = [c for c in refined if abs((c[1] - k0 + 6) % 12 - 6) >= 3]
+        if other and o.multi_start_iterations > 0:
+            n0 = min(o.multi_start_iterations, o.iterations - 1)
+            s0 = float(sig[min(n0, len(sig)) - 1])
+            runs = []
+            for c in (refined[0], other[0]):
+                q, _ = fitter.run(c[2], n0, sig[:n0], boosts=boosts[:n0])
+                runs.append((fitter.energy(q, s0, idx_s, idx_b), q))
+            p = min(runs, key=lambda r: r[0])[1]
+    fitter.progress = progress
+    p, rms = fitter.run(p, o.iterations - n0, sig[n0:] if n0 < len(sig) else sig[-1:], history=history,
+                        boosts=boosts[n0:] if n0 < len(boosts) else boosts[-1:],
                         pen_last=o.self_penetration_iterations)
     return FitResult(params=p, to_core=A, history=history, rms=rms)
 
@@ -415,7 +437,7 @@ def inside_fraction(model: BodyModel, params: BodyParams, points) -> float:
     X = model.pose(params)
     P = _validate.points("points", points)
     tri, _, cp = _core.closest_points_on_mesh(X, model.faces, P)
-    n = _face_normals(X, model.faces)[tri]
+    n = _face_normals(X, model.faces[tri])
     return float(np.mean(np.einsum("ij,ij->i", P - cp, n) < 0))
 
 
@@ -451,6 +473,6 @@ def self_penetration_depth(model: BodyModel, params: BodyParams) -> float:
     worst = 0.0
     for verts, faces in penetration_pairs(model):
         tri, _, cp = _core.closest_points_on_mesh(X, faces, np.ascontiguousarray(X[verts]))
-        d = np.einsum("ij,ij->i", X[verts] - cp, _face_normals(X, faces)[tri])
+        d = np.einsum("ij,ij->i", X[verts] - cp, _face_normals(X, faces[tri]))
         worst = max(worst, float(-d.min()) if d.min() < 0 else 0.0)
     return worst
