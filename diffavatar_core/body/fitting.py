@@ -24,11 +24,16 @@ extent and horizontal principal axes (twelve yaw candidates; the three best are 
 rigidly with the stature coefficient, and the best of those starts the full fit).
 
 Garment-only scans (the body is not visible): the garment is a shell around the body, so
-  E_g = 1/M Σ_i w_i (d_i − c)²,  d_i = n_i·(p_i − x_i) the signed garment-to-body distance,
-with weight κ = penetration_weight where the garment is inside the clearance c (d_i < c: the
-body pokes through or is too close) and Geman–McClure weight where it is outside (loose regions such as
-a skirt do not pull the body out); bone scales are held at 1 and the priors are stronger, so
-the uncovered parts of the body stay plausible.
+  E_g = 1/M Σ_i [w_i (d_i − c)² + κ min(0, d_i − c_min)²],  d_i = n_i·(p_i − x_i)
+the signed garment-to-body distance: quadratic about the clearance c where the garment is closer
+(symmetric: a one-sided penalty makes a smaller, shorter body the cheapest fit), Geman–McClure
+where it is further (loose regions such as a skirt do not pull the body out), and κ =
+penetration_weight below the minimum gap c_min (the body about to poke through). Bone scales
+are held at 1 and the priors are weighted like the data (about residual² / samples / prior
+variance: the torso's shape decides ν where it is seen, the prior where it is not). The placement
+puts the garment's top at the shoulders (tops, dresses) or the waist (skirts, trousers:
+garment_type); the best placement and the best one facing the other way (a garment's front and
+back look alike) are both fitted for a few iterations and the lower robust energy goes on.
 """
 from __future__ import annotations
 

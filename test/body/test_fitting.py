@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from diffavatar_core.body import BodyModel
+from diffavatar_core.body import BodyModel, BodyParams
 from diffavatar_core.body.fitting import fit_body, inside_fraction, scan_to_core
 from diffavatar_core.metrics import sample_surface
 
@@ -117,6 +117,13 @@ def _height(V):
     return V[:, 1].max() - V[:, 1].min()
 
 
+def stature(model, p):
+    """Standing height (m): the body with its shape and bone lengths, joint angles at zero."""
+    q = BodyParams.from_vector(p.to_vector(), model.num_shape, model.num_joints)
+    q.pose[:] = 0.0
+    return _height(model.pose(q))
+
+
 # seed 4: a tall body (1.79 m) that came out 7.4 cm short with the earlier asymmetric clearance
 # term and strong priors
 @pytest.mark.parametrize("seed", [0, 1, 2, 3, 4, 5])
@@ -124,8 +131,28 @@ def test_garment_only_fit_puts_the_body_inside(model, seed):
     truth, X, G, Fg = garment_case(model, seed)
     res = fit_body(100 * G @ ZUP.T, Fg, model=model, units="cm", up="z", garment_only=True)
     assert inside_fraction(model, res.params, G) <= 0.01
-    assert abs(_height(model.pose(res.params)) - _height(X)) <= 0.03
+    assert abs(_height(model.pose(res.params)) - _height(X)) <= 0.03     # as posed
+    assert abs(stature(model, res.params) - stature(model, truth)) <= 0.03
     np.testing.assert_array_equal(res.params.bone_scales, 1.0)     # held in garment-only mode
+
+
+def test_garment_type_places_shorts_at_the_waist(model):
+    """Shorts (pelvis and thighs) in the core frame (m, Y up): with garment_type the body's hips
+    end up in them (placed as a top, they are 20-25 cm off)."""
+    truth, X, G, Fg = garment_case(model, 0, joints=["pelvis", "spine_1", "hip_left", "hip_right"])
+    res = fit_body(G, Fg, model=model, garment_type="shorts")
+    assert inside_fraction(model, res.params, G) <= 0.01
+    hips = [model.joint_index(n) for n in ("pelvis", "hip_left", "hip_right")]
+    assert np.linalg.norm(model.joints(res.params)[hips] - model.joints(truth)[hips], axis=1).max() <= 0.02
+    assert abs(stature(model, res.params) - stature(model, truth)) <= 0.03
+
+
+def test_garment_type_is_checked(model):
+    G = np.random.default_rng(0).normal(size=(50, 3))
+    with pytest.raises(ValueError, match="not a known garment type"):
+        fit_body(G, model=model, garment_type="hat")
+    with pytest.raises(ValueError, match="garment-only"):
+        fit_body(G, model=model, garment_only=False, garment_type="skirt")
 
 
 def test_self_penetration_depth(model):
