@@ -397,7 +397,6 @@ def fit_body(scan_vertices, scan_faces=None, model: BodyModel | None = None, *, 
     # twelve yaws 30° apart scored as placed, the three best refined rigidly (with stature)
     starts = [initial(yaw0 + k * np.pi / 6) for k in range(12)]
     scores = [fitter.energy(q, 0.1, idx_s, idx_b) for q in starts]
-    best = None
     order = list(np.argsort(scores)[:3])
     if garment_only:
         # a garment's front and back look alike (trousers above all): the best yaw's opposite
