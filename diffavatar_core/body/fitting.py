@@ -24,11 +24,16 @@ extent and horizontal principal axes (twelve yaw candidates; the three best are 
 rigidly with the stature coefficient, and the best of those starts the full fit).
 
 Garment-only scans (the body is not visible): the garment is a shell around the body, so
-  E_g = 1/M Σ_i w_i (d_i − c)²,  d_i = n_i·(p_i − x_i) the signed garment-to-body distance,
-with weight κ = penetration_weight where the garment is inside the clearance c (d_i < c: the
-body pokes through or is too close) and Geman–McClure weight where it is outside (loose regions such as
-a skirt do not pull the body out); bone scales are held at 1 and the priors are stronger, so
-the uncovered parts of the body stay plausible.
+  E_g = 1/M Σ_i [w_i (d_i − c)² + κ min(0, d_i − c_min)²],  d_i = n_i·(p_i − x_i)
+the signed garment-to-body distance: quadratic about the clearance c where the garment is closer
+(symmetric: a one-sided penalty makes a smaller, shorter body the cheapest fit), Geman–McClure
+where it is further (loose regions such as a skirt do not pull the body out), and κ =
+penetration_weight below the minimum gap c_min (the body about to poke through). Bone scales
+are held at 1 and the priors are weighted like the data (about residual² / samples / prior
+variance: the torso's shape decides ν where it is seen, the prior where it is not). The placement
+puts the garment's top at the shoulders (tops, dresses) or the waist (skirts, trousers:
+garment_type); the best placement and the best one facing the other way (a garment's front and
+back look alike) are both fitted for a few iterations and the lower robust energy goes on.
 """
 from __future__ import annotations
 
@@ -76,9 +81,14 @@ class FitOptions:
     self_penetration_samples: int = 300  # vertices per part pair and iteration
     self_penetration_iterations: int = 12  # the term is active in the last iterations only
     clearance: float = 0.01              # garment-only: target body-to-garment gap (m)
-    penetration_weight: float = 10.0     # garment-only: weight of gaps below the clearance
-    garment_shape_prior: float = 2e-6
-    garment_pose_prior: float = 5e-5
+    min_clearance: float = 0.003         # garment-only: gaps below this are penalised with κ
+    penetration_weight: float = 10.0     # garment-only: κ
+    # garment-only priors: about (residual² / independent samples) / (prior variance), so that
+    # the torso's shape decides ν where it is seen; stronger ones shrink ν towards the mean
+    # body (a tall body under a top came out 7 cm short with 2e-6 / 5e-5)
+    garment_shape_prior: float = 5e-8
+    garment_pose_prior: float = 5e-6
+    multi_start_iterations: int = 12     # garment-only: iterations of each of the two starts
     seed: int = 0
 
 
@@ -100,6 +110,14 @@ def _gm_weight(r, sigma):
 def _gm_rho(r, sigma):
     """Geman–McClure ρ(r) = σ² r² / (σ² + r²) (≈ r² for |r| ≪ σ, → σ² for outliers)."""
     return sigma ** 2 * r ** 2 / (sigma ** 2 + r ** 2)
+
+
+def _jacobian_rows(model: BodyModel, p: BodyParams, idx) -> np.ndarray:
+    """∂x_v/∂θ for the vertex indices idx (any shape): idx.shape + (3, P), evaluated once per
+    distinct vertex (a fit touches a few thousand of the body's vertices per iteration)."""
+    idx = np.asarray(idx)
+    uniq, inv = np.unique(idx, return_inverse=True)
+    return model.jacobian(p, uniq)[inv.reshape(idx.shape)]
 
 
 def _face_normals(X, F):
@@ -139,27 +157,32 @@ class _Fitter:
         F = m.faces
         S = self.scan[idx_scan]
         tri, bary, cp = _core.closest_points_on_mesh(X, F, np.ascontiguousarray(S))
-        nf = _face_normals(X, F)[tri]
+        nf = _face_normals(X, F[tri])
         d = np.einsum("ij,ij->i", S - cp, nf)              # signed, + outside the body
         rows, res, wts, rho = [], [], [], 0.0
         if self.garment:
+            # symmetric about the clearance (an asymmetric one shrinks the body: a smaller, shorter
+            # body is the cheapest way to stay clear everywhere), Geman–McClure outside it, and
+            # κ below the minimum clearance (the garment about to enter the body)
             r1 = d - o.clearance
+            w1 = np.where(r1 < 0, 1.0, _gm_weight(r1, sigma))
+            r2 = np.minimum(d - o.min_clearance, 0.0)
             kin = o.penetration_weight
-            w1 = np.where(r1 < 0, kin, _gm_weight(r1, sigma))
-            rho += float(np.sum(np.where(r1 < 0, kin * r1 * r1, _gm_rho(r1, sigma)))) / len(S)
-            res.append(-r1)                                  # n·(x − p) + c
-            wts.append(w1 / len(S))
+            rho += float(np.sum(np.where(r1 < 0, r1 * r1, _gm_rho(r1, sigma)) + kin * r2 * r2)) / len(S)
+            res += [-r1, -r2]                                # n·(x − p) + c, n·(x − p) + c_min
+            wts += [w1 / len(S), np.full(len(S), kin / len(S))]
         else:
             r1 = -d
             res.append(r1)
             wts.append(_gm_weight(r1, sigma) / len(S))
             rho += float(np.sum(_gm_rho(r1, sigma))) / len(S)
-        Jall = m.jacobian(p) if with_jac else None
+        jac = (lambda idx: _jacobian_rows(m, p, idx)) if with_jac else None
         if with_jac:
             Fi = F[tri]
-            Jb = (bary[:, 0, None, None] * Jall[Fi[:, 0]] + bary[:, 1, None, None] * Jall[Fi[:, 1]]
-                  + bary[:, 2, None, None] * Jall[Fi[:, 2]])
+            Jb = np.einsum("ik,ikcp->icp", bary, jac(Fi))
             rows.append(np.einsum("ic,icp->ip", nf, Jb))
+            if self.garment:
+                rows.append(np.where((r2 < 0)[:, None], rows[-1], 0.0))
         if not self.garment:
             Xb = X[idx_body]
             if self.scan_faces is not None:
@@ -174,22 +197,21 @@ class _Fitter:
             wts.append(np.repeat(beta * _gm_weight(dist, sb), 3))
             rho += beta * float(np.sum(_gm_rho(dist, sb)))
             if with_jac:
-                rows.append(Jall[idx_body].reshape(-1, m.num_params))
+                rows.append(jac(idx_body).reshape(-1, m.num_params))
         gamma = o.self_penetration_weight * self.pen_on
         for verts, faces in (self.pen_pairs if gamma > 0 else []):
             u = verts if len(verts) <= o.self_penetration_samples else \
                 self.pen_rng.choice(verts, o.self_penetration_samples, replace=False)
             t2, b2, c2 = _core.closest_points_on_mesh(X, faces, np.ascontiguousarray(X[u]))
-            n2 = _face_normals(X, faces)[t2]
+            n2 = _face_normals(X, faces[t2])
             dp = np.minimum(np.einsum("ij,ij->i", X[u] - c2, n2), 0.0)
             res.append(dp)
             wts.append(np.full(len(u), gamma / len(u)))
             rho += gamma * float(np.sum(dp * dp)) / len(u)
             if with_jac:
                 Fi = faces[t2]
-                Jc = (b2[:, 0, None, None] * Jall[Fi[:, 0]] + b2[:, 1, None, None] * Jall[Fi[:, 1]]
-                      + b2[:, 2, None, None] * Jall[Fi[:, 2]])
-                Jrow = np.einsum("ic,icp->ip", n2, Jall[u] - Jc)
+                Jc = np.einsum("ik,ikcp->icp", b2, jac(Fi))
+                Jrow = np.einsum("ic,icp->ip", n2, jac(u) - Jc)
                 Jrow[dp == 0.0] = 0.0
                 rows.append(Jrow)
         inl = np.abs(d) < 3 * sigma
@@ -269,14 +291,58 @@ def _robust_extent(P):
     return lo, hi
 
 
+#: Where the top of a garment of each class sits on the body (garment-only placement).
+GARMENT_ANCHORS = {"upper": "shoulders", "dress": "shoulders", "skirt": "waist", "pants": "waist"}
+
+
+def garment_class_of(garment_type: str) -> str:
+    """The garment class ('upper', 'dress', 'skirt', 'pants') of a garment type or class name
+    as in config/labels.yaml ('tshirt' → 'upper', 'trousers' → 'pants', 'skirt' → 'skirt')."""
+    from ..scan.labels import LabelMap
+    lmap = LabelMap.load()
+    cls = lmap.garment_class(str(garment_type))
+    if cls not in GARMENT_ANCHORS:
+        raise ValueError(f"garment_type: {garment_type!r} is not a known garment type or class "
+                         f"(classes: {', '.join(GARMENT_ANCHORS)}; types: {', '.join(lmap.garment_types)})")
+    return cls
+
+
+def _anchor_point(model: BodyModel, anchor: str) -> np.ndarray:
+    """Rest-pose point (3,) of the mean body where a garment's top sits: the shoulder joints
+    (tops, dresses) or the waist (skirts, trousers; the waist landmark of the mean body, or
+    10 cm above the hip joints for models without the default skeleton)."""
+    J = model.j_template
+    if anchor == "shoulders":
+        sh = J[[model.joint_index("shoulder_left"), model.joint_index("shoulder_right")]].mean(0)
+        return sh + np.array([0.0, 0.02, 0.0])          # the shoulder line, 2 cm above the joints
+    try:
+        return np.asarray(model.landmarks(model.zero_params()).waist_center, np.float64)
+    except ValueError:
+        hips = [i for i, n in enumerate(model.joint_names) if n.startswith("hip")]
+        c = J[hips].mean(0) if hips else J[0]
+        return c + np.array([0.0, 0.10, 0.0])
+
+
 def fit_body(scan_vertices, scan_faces=None, model: BodyModel | None = None, *, units: str = "m",
-             up: str = "y", garment_only: bool = False, options: FitOptions | None = None,
-             progress=None) -> FitResult:
+             up: str = "y", garment_only: bool | None = None, garment_type: str | None = None,
+             options: FitOptions | None = None, progress=None) -> FitResult:
     """Fits the body to a scan (points (N,3), optional triangles (F,3)) given in `units`
     (m/cm/mm) with `up` ('y' or 'z') vertical. Returns the body parameters in the core frame
-    (m, Y up) of the converted scan. garment_only: the scan is a garment worn by the body."""
+    (m, Y up) of the converted scan.
+
+    garment_only: the scan is a garment worn by the body (the body is fitted inside it);
+    default: True when garment_type is given, else False.
+    garment_type: the garment's type or class ('tshirt', 'upper', 'dress', 'skirt',
+    'trousers', 'pants', ... as in config/labels.yaml): where its top sits on the body (the
+    shoulders for tops and dresses, the waist for skirts and trousers). Without it a
+    garment-only scan is placed as a top."""
     model = model or BodyModel.default()
     o = options or FitOptions()
+    if garment_only is None:
+        garment_only = garment_type is not None
+    if garment_type is not None and not garment_only:
+        raise ValueError("garment_type is for garment-only scans (garment_only=True)")
+    anchor = GARMENT_ANCHORS[garment_class_of(garment_type)] if garment_type is not None else "shoulders"
     P, A = scan_to_core(scan_vertices, units, up)
     F = None
     if scan_faces is not None and len(scan_faces):
@@ -311,6 +377,8 @@ def fit_body(scan_vertices, scan_faces=None, model: BodyModel | None = None, *, 
     idx_s = fitter.rng.choice(len(P), min(4000, len(P)), replace=False)
     idx_b = fitter.rng.choice(model.num_vertices, 2000, replace=False)
 
+    anchor_point = _anchor_point(model, anchor) if garment_only else None
+
     def initial(yaw):
         p = model.zero_params()
         p.rotation[:] = [0, yaw, 0]
@@ -320,29 +388,50 @@ def fit_body(scan_vertices, scan_faces=None, model: BodyModel | None = None, *, 
             body_c = np.array([0.0, 0.0, rest[:, 2].mean()])
             p.translation[:] = [centre[0], lo[1], centre[2]] - R @ body_c
         else:
-            # the garment's top (shoulder line) at the body's shoulders, centred horizontally
-            sh = model.j_template[[model.joint_index("shoulder_left"), model.joint_index("shoulder_right")]].mean(0)
-            p.translation[:] = [centre[0], hi[1] - sh[1] - 0.02, centre[2]] - R @ np.array([0, 0, sh[2]])
+            # the garment's top at the body's shoulders (tops, dresses) or waist (skirts,
+            # trousers), centred horizontally
+            a = anchor_point
+            p.translation[:] = [centre[0], hi[1] - a[1], centre[2]] - R @ np.array([0, 0, a[2]])
         return p
 
     # twelve yaws 30° apart scored as placed, the three best refined rigidly (with stature)
     starts = [initial(yaw0 + k * np.pi / 6) for k in range(12)]
     scores = [fitter.energy(q, 0.1, idx_s, idx_b) for q in starts]
-    best = None
-    for k in np.argsort(scores)[:3]:
+    order = list(np.argsort(scores)[:3])
+    if garment_only:
+        # a garment's front and back look alike (trousers above all): the best yaw's opposite
+        # is always a candidate, and both go into the full fit (below)
+        order.append(int(np.argsort(scores)[0] + 6) % 12)
+    refined = []
+    for k in dict.fromkeys(order):
         q, _ = fitter.run(starts[k], 10, np.geomspace(0.15, 0.03, 10), free=free_rigid, n_scan=1500, n_body=800)
-        e = fitter.energy(q, 0.03, idx_s, idx_b)
-        if best is None or e < best[0]:
-            best = (e, q)
-    p = best[1]
+        refined.append((fitter.energy(q, 0.03, idx_s, idx_b), k, q))
+    refined.sort(key=lambda c: c[0])
     history: list = []
-    fitter.progress = progress
     # coarse to fine: the robust scale shrinks and the pose prior relaxes (a stiff skeleton
     # first, so that shape and global placement settle before distal joints are released)
     n_anneal = max(o.iterations - 8, 1)
     sig = np.geomspace(o.sigma[0], o.sigma[1], n_anneal)
     boosts = np.geomspace(o.pose_prior_boost, 1.0, n_anneal)
-    p, rms = fitter.run(p, o.iterations, sig, history=history, boosts=boosts,
+    n0 = 0
+    p = refined[0][2]
+    if garment_only:
+        # multi-start: the best placement and the best one facing the other way are fitted for
+        # the first iterations (shape and pose free) and scored by the robust energy there;
+        # the lower one goes on (the knees' and hips' limits tell front from back)
+        k0 = refined[0][1]
+        other = [c for c in refined if abs((c[1] - k0 + 6) % 12 - 6) >= 3]
+        if other and o.multi_start_iterations > 0:
+            n0 = min(o.multi_start_iterations, o.iterations - 1)
+            s0 = float(sig[min(n0, len(sig)) - 1])
+            runs = []
+            for c in (refined[0], other[0]):
+                q, _ = fitter.run(c[2], n0, sig[:n0], boosts=boosts[:n0])
+                runs.append((fitter.energy(q, s0, idx_s, idx_b), q))
+            p = min(runs, key=lambda r: r[0])[1]
+    fitter.progress = progress
+    p, rms = fitter.run(p, o.iterations - n0, sig[n0:] if n0 < len(sig) else sig[-1:], history=history,
+                        boosts=boosts[n0:] if n0 < len(boosts) else boosts[-1:],
                         pen_last=o.self_penetration_iterations)
     return FitResult(params=p, to_core=A, history=history, rms=rms)
 
@@ -352,7 +441,7 @@ def inside_fraction(model: BodyModel, params: BodyParams, points) -> float:
     X = model.pose(params)
     P = _validate.points("points", points)
     tri, _, cp = _core.closest_points_on_mesh(X, model.faces, P)
-    n = _face_normals(X, model.faces)[tri]
+    n = _face_normals(X, model.faces[tri])
     return float(np.mean(np.einsum("ij,ij->i", P - cp, n) < 0))
 
 
@@ -388,6 +477,6 @@ def self_penetration_depth(model: BodyModel, params: BodyParams) -> float:
     worst = 0.0
     for verts, faces in penetration_pairs(model):
         tri, _, cp = _core.closest_points_on_mesh(X, faces, np.ascontiguousarray(X[verts]))
-        d = np.einsum("ij,ij->i", X[verts] - cp, _face_normals(X, faces)[tri])
+        d = np.einsum("ij,ij->i", X[verts] - cp, _face_normals(X, faces[tri]))
         worst = max(worst, float(-d.min()) if d.min() < 0 else 0.0)
     return worst

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from diffavatar_core.body import BodyModel
+from diffavatar_core.body import BodyModel, BodyParams
 from diffavatar_core.body.fitting import fit_body, inside_fraction, scan_to_core
 from diffavatar_core.metrics import sample_surface
 
@@ -75,11 +75,10 @@ def _vertex_normals(X, F):
     return vn / np.linalg.norm(vn, axis=1, keepdims=True)
 
 
-def torso_garment(model, X, offset):
-    """A top made by offsetting the posed body's torso surface (pelvis to clavicles) outward."""
-    torso = [model.joint_index(n) for n in
-             ["pelvis", "spine_1", "spine_2", "spine_3", "spine_4", "chest", "clavicle_left", "clavicle_right"]]
-    inside = np.isin(np.argmax(model.weights, axis=1), torso)
+def region_garment(model, X, offset, joints):
+    """A garment made by offsetting the posed body's surface over the given joints' regions
+    (vertices skinned mostly to them) outward along the vertex normals."""
+    inside = np.isin(np.argmax(model.weights, axis=1), [model.joint_index(n) for n in joints])
     F = model.faces[inside[model.faces].all(axis=1)]
     used = np.unique(F)
     remap = -np.ones(model.num_vertices, np.int64)
@@ -87,20 +86,73 @@ def torso_garment(model, X, offset):
     return X[used] + offset * _vertex_normals(X, model.faces)[used], remap[F]
 
 
-def test_garment_only_fit_puts_the_body_inside(model):
-    rng = np.random.default_rng(2)
+TORSO = ["pelvis", "spine_1", "spine_2", "spine_3", "spine_4", "chest", "clavicle_left", "clavicle_right"]
+
+
+def torso_garment(model, X, offset):
+    """A top made by offsetting the posed body's torso surface (pelvis to clavicles) outward."""
+    return region_garment(model, X, offset, TORSO)
+
+
+def garment_case(model, seed, joints=TORSO, bone_noise=False):
+    """(truth params, posed truth X, garment G, Fg) in a random world placement (yaw, translation):
+    a body from the prior under a garment offset 1 cm (the fit's default clearance) from it.
+    Bone lengths stay at 1 unless bone_noise: the garment-only fit holds them (no garment shows
+    the legs' and the spine's proportions apart from the shape), so with bone_noise the body is
+    outside what the fit can represent."""
+    rng = np.random.default_rng(seed)
     truth = random_body(model, rng, pose_sd=0.08)
-    X = model.pose(truth)
-    G, Fg = torso_garment(model, X, offset=0.01)          # 1 cm clearance, as the default
+    if not bone_noise:
+        truth.bone_scales[:] = 1.0
     R = Rotation.from_rotvec([0, rng.uniform(-np.pi, np.pi), 0]).as_matrix()
     t = rng.normal(scale=0.5, size=3)
-    Gw, Xw = G @ R.T + t, X @ R.T + t
-    res = fit_body(100 * Gw @ ZUP.T, Fg, model=model, units="cm", up="z", garment_only=True)
-    assert inside_fraction(model, res.params, Gw) <= 0.01
-    Xf = model.pose(res.params)
-    height = lambda V: V[:, 1].max() - V[:, 1].min()  # noqa: E731
-    assert abs(height(Xf) - height(Xw)) <= 0.03
+    truth.rotation[:] = Rotation.from_matrix(R).as_rotvec()
+    truth.translation[:] = t
+    X = model.pose(truth)
+    G, Fg = region_garment(model, X, 0.01, joints)
+    return truth, X, G, Fg
+
+
+def _height(V):
+    return V[:, 1].max() - V[:, 1].min()
+
+
+def stature(model, p):
+    """Standing height (m): the body with its shape and bone lengths, joint angles at zero."""
+    q = BodyParams.from_vector(p.to_vector(), model.num_shape, model.num_joints)
+    q.pose[:] = 0.0
+    return _height(model.pose(q))
+
+
+# seed 4: a tall body (1.79 m) that came out 7.4 cm short with the earlier asymmetric clearance
+# term and strong priors
+@pytest.mark.parametrize("seed", [0, 1, 2, 3, 4, 5])
+def test_garment_only_fit_puts_the_body_inside(model, seed):
+    truth, X, G, Fg = garment_case(model, seed)
+    res = fit_body(100 * G @ ZUP.T, Fg, model=model, units="cm", up="z", garment_only=True)
+    assert inside_fraction(model, res.params, G) <= 0.01
+    assert abs(_height(model.pose(res.params)) - _height(X)) <= 0.03     # as posed
+    assert abs(stature(model, res.params) - stature(model, truth)) <= 0.03
     np.testing.assert_array_equal(res.params.bone_scales, 1.0)     # held in garment-only mode
+
+
+def test_garment_type_places_shorts_at_the_waist(model):
+    """Shorts (pelvis and thighs) in the core frame (m, Y up): with garment_type the body's hips
+    end up in them (placed as a top, they are 20-25 cm off)."""
+    truth, X, G, Fg = garment_case(model, 0, joints=["pelvis", "spine_1", "hip_left", "hip_right"])
+    res = fit_body(G, Fg, model=model, garment_type="shorts")
+    assert inside_fraction(model, res.params, G) <= 0.01
+    hips = [model.joint_index(n) for n in ("pelvis", "hip_left", "hip_right")]
+    assert np.linalg.norm(model.joints(res.params)[hips] - model.joints(truth)[hips], axis=1).max() <= 0.02
+    assert abs(stature(model, res.params) - stature(model, truth)) <= 0.03
+
+
+def test_garment_type_is_checked(model):
+    G = np.random.default_rng(0).normal(size=(50, 3))
+    with pytest.raises(ValueError, match="not a known garment type"):
+        fit_body(G, model=model, garment_type="hat")
+    with pytest.raises(ValueError, match="garment-only"):
+        fit_body(G, model=model, garment_only=False, garment_type="skirt")
 
 
 def test_self_penetration_depth(model):
