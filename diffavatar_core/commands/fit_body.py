@@ -1,4 +1,4 @@
-"""`diffavatar fit-body SCAN --out DIR [--units cm|m|mm] [--up y|z] [--garment-only]`: fits the
+"""`diffavatar fit-body SCAN --out DIR [--units cm|m|mm] [--up y|z] [--garment-only] [--garment-type T]`: fits the
 parametric body to a scan (mesh or point cloud: OBJ, PLY, ...) and writes DIR/body.obj (posed
 body, m, Y up: the core's frame) and DIR/body.json (parameters, landmarks, scan → core frame)."""
 import json
@@ -34,7 +34,8 @@ def run(args) -> int:
     def progress(it, n, rms):
         if not args.quiet:
             print(f"[fit-body] iteration {it + 1}/{n}: scan→body RMS {1000 * rms:.1f} mm", file=sys.stderr)
-    res = fit_body(V, F, model, units=args.units, up=args.up, garment_only=args.garment_only,
+    res = fit_body(V, F, model, units=args.units, up=args.up,
+                   garment_only=args.garment_only or bool(args.garment_type), garment_type=args.garment_type,
                    options=opts, progress=progress)
     out = pathlib.Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -44,7 +45,7 @@ def run(args) -> int:
         "frame": "core: metres, Y up, body facing +Z, +X = body's left",
         "scan": str(args.scan), "scan_units": args.units, "scan_up": args.up,
         "scan_to_core": res.to_core.tolist(),
-        "mode": "garment-only" if args.garment_only else "full-scan",
+        "mode": "garment-only" if (args.garment_only or args.garment_type) else "full-scan",
         "rms_m": res.rms,
         "params": res.params.to_dict(model.joint_names),
         "landmarks": model.landmarks(res.params).to_dict(),
@@ -61,6 +62,9 @@ def register(sub) -> None:
     p.add_argument("--out", required=True, help="output directory for body.obj and body.json")
     p.add_argument("--units", choices=["m", "cm", "mm"], default="m", help="units of the scan")
     p.add_argument("--up", choices=["y", "z"], default="y", help="vertical axis of the scan")
+    p.add_argument("--garment-type", default=None,
+                   help="garment-only scan of this type (config/labels.yaml: tshirt, skirt, shorts, ...): "
+                        "tops are placed at the shoulders, skirts and trousers at the waist")
     p.add_argument("--garment-only", action="store_true",
                    help="the scan is a garment: fit the body inside it")
     p.add_argument("--iterations", type=int, default=45, help="Gauss-Newton iterations")

@@ -139,7 +139,8 @@ def recover(scan, options=None, run_control=None, *, progress=None, cancel=None,
     body_mask = data.label_vertex_mask("body") if data.labels is not None else np.zeros(len(data.vertices), bool)
     full = body_mask.mean() >= MIN_BODY_FRACTION
     pts = data.vertices[body_mask] if full else Vg_scan
-    fit = fit_body(pts, None, model, garment_only=not full)
+    fit = fit_body(pts, None, model, garment_only=not full,
+                   garment_type=None if full else (data.garment_type or data.garment_class))
     ctl.check("body")
     body_params = fit.params
     body_vertices = model.pose(body_params)
