@@ -116,12 +116,52 @@ def _top_spec(name: str, lm: BodyLandmarks, m: TopMeasurements) -> PatternSpec:
             ex = np.cross(ey, up)
             # the tube's axis runs through the shoulder tip, along the arm; the cap peak at the tip
             pl = Placement(sh + Rs * up + 0.02 * ey, ex, ey, u0=0.0, v0=Lu + cap_h, radius=Rs)
+            if Lu >= 0.35:   # long sleeves follow the arm's bend at the elbow
+                el = lm.elbow_left if side == "left" else lm.elbow_right
+                wr = lm.wrist_left if side == "left" else lm.wrist_right
+                # the shoulder tip is on top of the arm: its axis starts R/2 lower
+                pl = ArmTube(np.array([sh + 0.02 * ey - 0.5 * Rs * up, el, wr]), Rs, v0=Lu + cap_h)
             panels.append(PanelSpec(f"sleeve_{side}", Vs, pl, curves=dict(cs), boundary={0: f"sleeve_{side}"}))
         # u > 0 of the left sleeve faces the back (ex = ey × up ≈ −Z), of the right one the front
         seams += [SeamSpec("sleeve_left", 1, "sleeve_left", 4), SeamSpec("sleeve_right", 1, "sleeve_right", 4),
                   SeamSpec("sleeve_left", 3, "front", 2), SeamSpec("sleeve_left", 2, "back", 6),
                   SeamSpec("sleeve_right", 2, "front", 6), SeamSpec("sleeve_right", 3, "back", 2)]
     return PatternSpec(name, panels, seams)
+
+
+@dataclass
+class ArmTube:
+    """Places a sleeve panel as a tube of radius R around a bent arm axis (polyline from the
+    shoulder through the elbow to the wrist, extended straight beyond it): the panel's v runs
+    along the axis (v0 at the first axis point, decreasing away from it), u around it (θ = u/R,
+    u = 0 on the top of the arm), as Placement's cylinder for a straight arm; the tube's
+    direction turns smoothly over ±`bend` m around each joint."""
+    axis: np.ndarray            # (K, 3) m
+    radius: float
+    v0: float
+    bend: float = 0.05
+
+    def __call__(self, uv: np.ndarray) -> np.ndarray:
+        P = np.asarray(self.axis, float)
+        seg = np.diff(P, axis=0)
+        L = np.linalg.norm(seg, axis=1)
+        t = seg / L[:, None]
+        c = np.concatenate([[0.0], np.cumsum(L)])
+        d = np.maximum(self.v0 - uv[:, 1], 0.0)
+        k = np.clip(np.searchsorted(c, d, side="right") - 1, 0, len(seg) - 1)
+        point = P[k] + (d - c[k])[:, None] * t[k]
+        e = t[k].copy()
+        for j in range(1, len(seg)):             # smooth turn of the direction at joint j
+            lam = np.clip((d - (c[j] - self.bend)) / (2 * self.bend), 0.0, 1.0)[:, None]
+            lam = lam * lam * (3 - 2 * lam)
+            near = np.abs(d - c[j]) < self.bend
+            e[near] = ((1 - lam) * t[j - 1] + lam * t[j])[near]
+        ey = -e / np.linalg.norm(e, axis=1, keepdims=True)
+        up = np.array([0.0, 1.0, 0.0])[None, :] - ey[:, 1:2] * ey
+        up /= np.linalg.norm(up, axis=1, keepdims=True)
+        ex = np.cross(ey, up)
+        th = uv[:, 0] / self.radius
+        return point + self.radius * (np.sin(th)[:, None] * ex + np.cos(th)[:, None] * up)
 
 
 def _solve_cap_height(Wb: float, target: float) -> float:
