@@ -253,7 +253,7 @@ class PantsMeasurements:
     front_rise_curve: float = 0.08    # height of the crotch curve above the crotch point
     back_rise_curve: float = 0.10
     hem_width: float = 0.42           # leg opening circumference
-    hem_above_ankle: float = 0.03
+    hem_above_ankle: float = 0.15     # ankle-crop: a hem resting on the feet did not drape clean
     side_taper: float = 0.02          # side seam inward from the hip line at the hem
     gap: float = 0.03
 
@@ -407,7 +407,7 @@ TEMPLATES = {
     "longsleeve": "long-sleeve shirt",
     "dress": "short-sleeve dress, knee length, flared",
     "skirt": "A-line skirt, knee length",
-    "pants": "trousers, ankle length (two legs, front and back panels each)",
+    "pants": "trousers, cropped above the ankle (two legs, front and back panels each)",
 }
 
 
