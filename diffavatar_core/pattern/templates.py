@@ -92,7 +92,10 @@ def _top_spec(name: str, lm: BodyLandmarks, m: TopMeasurements) -> PatternSpec:
     Vf, cf = body(m.front_neck_depth)
     Vb, cb = body(m.back_neck_depth)
     # above the armpits the panels fold over the shoulders towards each other
-    fold = dict(radius=Rt, fold_at=Ls, fold_radius=m.fold_radius)
+    # (the fold's top, fold_at + radius above the hem, must clear the neck base: on a body
+    # whose neck sits high above the armpits a lower fold cut through the trapezius)
+    fold_r = max(m.fold_radius, lm.neck_base[1] + m.gap - (hem_y + Ls))
+    fold = dict(radius=Rt, fold_at=Ls, fold_radius=fold_r)
     front = PanelSpec("front", Vf, Placement([axis[0], hem_y, axis[2] + Rt], [1, 0, 0], [0, 1, 0], **fold),
                       curves=cf, boundary={0: "hem", 4: "neckline"})
     back = PanelSpec("back", Vb, Placement([axis[0], hem_y, axis[2] - Rt], [-1, 0, 0], [0, 1, 0], **fold),
