@@ -58,7 +58,8 @@ class TopMeasurements:
     bicep_width: float = 0.36        # sleeve width at the armpit
     cuff_width: float = 0.32
     gap: float = 0.03                # distance of the placed sheet outside the body
-    fold_radius: float = 0.17        # bend of the panels over the shoulders (placement only)
+    fold_radius: float | None = None  # bend of the panels over the shoulders (placement only);
+    # None: 0.17 m, grown until the fold's top clears the neck base (see _top_spec)
 
 
 @dataclass
@@ -94,7 +95,11 @@ def _top_spec(name: str, lm: BodyLandmarks, m: TopMeasurements) -> PatternSpec:
     # above the armpits the panels fold over the shoulders towards each other
     # (the fold's top, fold_at + radius above the hem, must clear the neck base: on a body
     # whose neck sits high above the armpits a lower fold cut through the trapezius)
-    fold_r = max(m.fold_radius, lm.neck_base[1] + m.gap - (hem_y + Ls))
+    # Measured on the default body: the t-shirt needs the grown fold (else 7-13 mm penetration
+    # at the shoulder blade); the long-sleeve shirt and the dress drape clean with 0.17 m and
+    # not with the grown fold (the dress slid off, the long sleeve cut the upper back).
+    fold_r = m.fold_radius if m.fold_radius is not None else \
+        max(0.17, lm.neck_base[1] + m.gap - (hem_y + Ls))
     fold = dict(radius=Rt, fold_at=Ls, fold_radius=fold_r)
     front = PanelSpec("front", Vf, Placement([axis[0], hem_y, axis[2] + Rt], [1, 0, 0], [0, 1, 0], **fold),
                       curves=cf, boundary={0: "hem", 4: "neckline"})
@@ -420,10 +425,11 @@ def template_spec(name: str, landmarks: BodyLandmarks | None = None, **measureme
     if name == "tshirt":
         return _top_spec(name, lm, replace(TopMeasurements(), **measurements))
     if name == "longsleeve":
-        base = TopMeasurements(sleeve_length=0.58, bicep_width=0.34, cuff_width=0.24)
+        base = TopMeasurements(sleeve_length=0.58, bicep_width=0.34, cuff_width=0.24, fold_radius=0.17)
         return _top_spec(name, lm, replace(base, **measurements))
     if name == "dress":
-        base = TopMeasurements(length=lm.neck_base[1] - lm.knee_left[1] + 0.02, hem_flare=0.12, ease=0.08)
+        base = TopMeasurements(length=lm.neck_base[1] - lm.knee_left[1] + 0.02, hem_flare=0.12, ease=0.08,
+                               fold_radius=0.17)
         return _top_spec(name, lm, replace(base, **measurements))
     if name == "skirt":
         return _skirt_spec(lm, replace(SkirtMeasurements(), **measurements))
