@@ -148,15 +148,14 @@ class _SizeField:
         out = np.full(len(Q), self.h)
         if self.uniform or len(Q) == 0:
             return out
-        # only points within (h − min ℓ)/GRADING of a fine boundary vertex are below h
-        dmin, _ = self.tree.query(Q, distance_upper_bound=(self.h - self.hmin) / GRADING)
-        idx = np.flatnonzero(np.isfinite(dmin))
-        step = max(1, 2_000_000 // len(self.P))
-        for a in range(0, len(idx), step):
-            sub = idx[a:a + step]
-            d = np.sqrt(np.sum((Q[sub, None, :] - self.P[None, :, :]) ** 2, axis=2))
-            out[sub] = np.minimum(self.h, np.min(self.l[None, :] + GRADING * d, axis=1))
-        return out
+        # only points within (h − min ℓ)/GRADING of a fine boundary vertex are below h; the
+        # minimum is taken over their K nearest fine vertices (the field is a target, not a bound)
+        K = min(24, len(self.P))
+        d, j = self.tree.query(Q, k=K, distance_upper_bound=(self.h - self.hmin) / GRADING)
+        d, j = d.reshape(len(Q), K), j.reshape(len(Q), K)
+        hit = np.isfinite(d)
+        lj = np.where(hit, self.l[np.minimum(j, len(self.P) - 1)], np.inf)
+        return np.minimum(self.h, np.min(lj + GRADING * np.where(hit, d, np.inf), axis=1))
 
 
 def _lattice(lo, hi, s):
