@@ -5,9 +5,11 @@ body's left).
 Tops (t-shirt, long-sleeve, short-sleeve dress) are a front and a back panel wrapped around a
 vertical cylinder about the torso a few cm outside the chest, and one sleeve panel per arm
 wrapped into a tube around the arm axis (underarm seam closed, cap sewn to the front and back
-armholes). The skirt is a front and a back panel wrapped around the hips. Every sewn pair of
-edges has the same length in the pattern (the sleeve cap height is solved for it), so the
-seam-length regularizer is zero at the template. All lengths below are in metres."""
+armholes; long sleeves bend at the elbow). The skirt is a front and a back panel laid on the
+torso's cross-sections. The trousers are a front and a back panel per leg, each leg laid as a
+tube around its leg axis, the seat on the torso's cross-sections. Every sewn pair of edges has
+the same length in the pattern (the sleeve cap height and the back crotch point are solved for
+it), so the seam-length regularizer is zero at the template. All lengths below are in metres."""
 from __future__ import annotations
 
 from dataclasses import dataclass, asdict, replace

@@ -1,5 +1,5 @@
 """Built-in parametric templates: geometric properties of the pattern and its 3D placement
-(the drape test waits for the simulator)."""
+(the drapes: test_template_drapes.py and test/sim/test_drape_cli.py)."""
 import numpy as np
 import pytest
 
