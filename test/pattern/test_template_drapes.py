@@ -7,12 +7,14 @@ import pytest
 
 from diffavatar_core.sim import drape_job
 
-MAX_STEPS = 400
+# XPBD step budgets before the Newton refinement: the tops converge from 250 steps (unsettled)
+# as from 400 with the same residual, in about half the time; skirt and pants settle in ~300
+MAX_STEPS = {"longsleeve": 250, "dress": 250, "skirt": 400, "pants": 400}
 
 
 @pytest.mark.parametrize("garment", ["longsleeve", "dress", "skirt", "pants"])
 def test_template_drapes_on_the_default_body(garment, tmp_path):
-    info, cloth, g, (bv, bf) = drape_job.execute(tmp_path, garment, max_steps=MAX_STEPS, edge=0.04)
+    info, cloth, g, (bv, bf) = drape_job.execute(tmp_path, garment, max_steps=MAX_STEPS[garment], edge=0.04)
     assert info["converged"] and not info["diverged"], info["message"]
     assert info["max_seam_gap_mm"] < 1.0
     assert info["max_penetration_mm"] <= 0.1 * 4.0     # 10% of the 4 mm collision thickness
