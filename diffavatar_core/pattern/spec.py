@@ -68,21 +68,26 @@ class PanelSpec:
 
     def edge_polyline(self, k: int, n: int) -> np.ndarray:
         """(n+1, 2) points along edge k, uniformly spaced in arc length (m)."""
+        return self.edge_points(k, np.linspace(0.0, 1.0, n + 1))
+
+    def edge_points(self, k: int, t: np.ndarray) -> np.ndarray:
+        """Points (len(t), 2) m of edge k at the arc-length fractions t ∈ [0, 1]."""
         V = np.asarray(self.vertices, float)
         a, b = V[k], V[(k + 1) % len(V)]
+        t = np.asarray(t, float)
         ctrl = self.curves.get(k)
         if ctrl is None:
-            t = np.linspace(0, 1, n + 1)
             return a + t[:, None] * (b - a)
         if isinstance(ctrl, Arc):
-            t = np.linspace(0, 1, n + 1)
             return ctrl.points(t)
         P = np.vstack([a, np.asarray(ctrl, float).reshape(-1, 2), b])
-        dense = bezier(P, np.linspace(0, 1, 64 * n + 1))
+        dense = bezier(P, np.linspace(0, 1, max(64 * len(t), 4097)))
         s = np.concatenate([[0], np.cumsum(np.linalg.norm(np.diff(dense, axis=0), axis=1))])
-        target = np.linspace(0, s[-1], n + 1)
-        ts = np.interp(target, s, np.linspace(0, 1, len(dense)))
-        return bezier(P, ts)
+        ts = np.interp(t * s[-1], s, np.linspace(0, 1, len(dense)))
+        out = bezier(P, ts)
+        out[t <= 0.0] = a               # the corners exactly
+        out[t >= 1.0] = b
+        return out
 
     def edge_length(self, k: int) -> float:
         pts = self.edge_polyline(k, 64)
@@ -165,9 +170,8 @@ def build_garment(spec: PatternSpec, edge_length: float = 0.012, gap: float = 0.
     groups: dict = {}
     for j in range(len(keys)):
         groups.setdefault(uf.find(j), []).append(j)
-    nseg = np.zeros(len(keys), int)
-    for members in groups.values():
-        nseg[members] = max(1, int(np.ceil(lengths[members].max() / edge_length - 0.25)))
+    fractions = _edge_fractions(spec, keys, kid, groups, lengths, edge_length, pid)
+    nseg = np.array([len(fractions[j]) - 1 for j in range(len(keys))], int)
 
     rest, faces, x0, panel, infos = [], [], [], [], []
     edge_vertices = {}   # (panel, edge) → (n+1,) global vertex ids
@@ -177,7 +181,7 @@ def build_garment(spec: PatternSpec, edge_length: float = 0.012, gap: float = 0.
         K = len(p.vertices)
         loop_pts, loop_edge = [], []
         for k in range(K):
-            pts = p.edge_polyline(k, int(nseg[kid[(i, k)]]))
+            pts = p.edge_points(k, fractions[kid[(i, k)]])
             loop_pts.append(pts[:-1])
         B = np.vstack(loop_pts)
         if polygon_area(B) <= 0:
@@ -217,6 +221,73 @@ def build_garment(spec: PatternSpec, edge_length: float = 0.012, gap: float = 0.
     return Garment(rest=np.vstack(rest), faces=np.vstack(faces), x0=np.vstack(x0),
                    seams=seams, panel=np.concatenate(panel), panels=infos,
                    boundaries=boundaries, name=spec.name)
+
+
+GRADING = 0.25     # growth of the boundary spacing per unit length away from a short edge
+
+
+def _edge_fractions(spec, keys, kid, groups, lengths, h, pid):
+    """Arc-length fractions (n+1,) at which every panel edge is sampled. The spacing is the
+    target h, except near a corner whose other edge is sampled finer (a short edge, or a seam
+    partner's grading): there it starts at that spacing and grows by GRADING per unit length
+    (a fine segment next to a long one would force a sliver at the corner). Seam-sewn edges
+    share one set of fractions (mirrored where sewn in reverse), hence equal vertex counts at
+    matching relative positions."""
+    ncorner = {i: len(p.vertices) for i, p in enumerate(spec.panels)}
+    L = {key: lengths[j] for j, key in enumerate(keys)}
+    corner = {}
+    for i, K in ncorner.items():
+        for v in range(K):
+            corner[(i, v)] = min(h, L[(i, (v - 1) % K)], L[(i, v)])
+    # orientation of every edge relative to its group's first member (seams may sew reversed)
+    adj: dict = {}
+    for s in spec.seams:
+        a, b = kid[(pid[s.panel_a], s.edge_a)], kid[(pid[s.panel_b], s.edge_b)]
+        adj.setdefault(a, []).append((b, s.reverse))
+        adj.setdefault(b, []).append((a, s.reverse))
+    flips = []
+    for members in groups.values():
+        flip = {members[0]: False}
+        stack = [members[0]]
+        while stack:
+            j = stack.pop()
+            for o, rev in adj.get(j, []):
+                if o not in flip:
+                    flip[o] = flip[j] != rev
+                    stack.append(o)
+        flips.append(flip)
+    t = np.linspace(0.0, 1.0, 4001)
+    for _ in range(8):   # corner spacings propagate through seams and along panels
+        out = {}
+        for members, flip in zip(groups.values(), flips):
+            rho = np.zeros_like(t)
+            for j in members:
+                i, k = keys[j]
+                Lj = L[(i, k)]
+                s0, s1 = corner[(i, k)], corner[(i, (k + 1) % ncorner[i])]
+                tt = 1.0 - t if flip.get(j, False) else t
+                size = np.minimum(h, np.minimum(s0 + GRADING * tt * Lj, s1 + GRADING * (1 - tt) * Lj))
+                rho = np.maximum(rho, Lj / size)
+            if np.ptp(rho) <= 1e-12 * rho.max():           # uniform: equal arc-length segments
+                n = max(1, int(np.ceil(rho[0] - 0.25)))
+                f = np.linspace(0.0, 1.0, n + 1)
+            else:
+                Phi = np.concatenate([[0.0], np.cumsum(0.5 * (rho[1:] + rho[:-1]) * np.diff(t))])
+                n = max(1, int(np.ceil(Phi[-1] - 0.25)))
+                f = np.interp(np.linspace(0.0, Phi[-1], n + 1), Phi, t)
+                f[0], f[-1] = 0.0, 1.0
+            for j in members:
+                out[j] = 1.0 - f[::-1] if flip.get(j, False) else f
+        changed = False
+        for j, (i, k) in enumerate(keys):
+            f, Lj = out[j], L[(i, k)]
+            for v, first in ((k, f[1] * Lj), ((k + 1) % ncorner[i], (1.0 - f[-2]) * Lj)):
+                if first < 0.9 * corner[(i, v)]:
+                    corner[(i, v)] = first
+                    changed = True
+        if not changed:
+            break
+    return out
 
 
 def _chain(chains: list, weld: _UnionFind) -> np.ndarray:

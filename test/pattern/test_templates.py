@@ -1,5 +1,5 @@
 """Built-in parametric templates: geometric properties of the pattern and its 3D placement
-(the drape test waits for the simulator)."""
+(the drapes: test_template_drapes.py and test/sim/test_drape_cli.py)."""
 import numpy as np
 import pytest
 
@@ -11,7 +11,8 @@ LM = default_landmarks()
 OPENINGS = {"tshirt": {"hem", "neckline", "sleeve_left", "sleeve_right"},
             "longsleeve": {"hem", "neckline", "sleeve_left", "sleeve_right"},
             "dress": {"hem", "neckline", "sleeve_left", "sleeve_right"},
-            "skirt": {"hem", "waist"}}
+            "skirt": {"hem", "waist"},
+            "pants": {"waist", "leg_left", "leg_right"}}   # config/labels.yaml garment_openings
 
 
 @pytest.fixture(scope="module", params=sorted(TEMPLATES))
@@ -35,6 +36,8 @@ def test_pattern_quality_and_seams(garment):
 
 def test_placement_is_sewable_and_outside_the_body(garment):
     name, g = garment
+    if name == "pants":
+        pytest.skip("trousers have leg panels: see test_pants_placement")
     d = np.linalg.norm(g.x0[g.seams[:, 0]] - g.x0[g.seams[:, 1]], axis=1)
     assert d.max() < 0.30          # m: seam partners within reach of the sewing springs
     # front/back panels stay outside the torso cylinder between the hips and the chest
@@ -44,7 +47,9 @@ def test_placement_is_sewable_and_outside_the_body(garment):
     band = body & (g.x0[:, 1] > LM.hip_center[1] - 0.05) & (g.x0[:, 1] < LM.chest_center[1])
     assert band.sum() > 20
     r = np.hypot(g.x0[band, 0] - axis[0], g.x0[band, 2] - axis[2])
-    assert r.min() > girth / (2 * np.pi)
+    if name == "skirt":   # laid on the torso's section at each height: waist → hip girth
+        girth = np.interp(g.x0[band, 1], [LM.hip_center[1], LM.waist_center[1]], [LM.hip_girth, LM.waist_girth])
+    assert np.all(r > girth / (2 * np.pi))
     # front in front, back behind, left sleeve on the body's left (+X)
     names = g.panel_names
     assert g.x0[g.panel == names.index("front"), 2].mean() > g.x0[g.panel == names.index("back"), 2].mean()
@@ -66,3 +71,46 @@ def test_measurements_change_the_pattern():
     assert np.ptp(long_.vertices[:, 1]) - np.ptp(short.vertices[:, 1]) == pytest.approx(0.2)
     with pytest.raises(ValueError, match="unknown template"):
         template_spec("kilt")
+
+
+def test_pants_pattern_and_placement():
+    """Trousers: four panels (front/back × left/right), the openings the label map names for
+    the 'pants' class, side seams, inseams and the centre front/back seams through the crotch;
+    each leg placed as a tube around its leg axis, the seat around the hips."""
+    import yaml
+    from conftest import REPO
+    labels = yaml.safe_load((REPO / "config" / "labels.yaml").read_text())
+    g = make_template("pants", edge_length=0.03)
+    assert set(g.boundaries) == set(labels["garment_openings"]["pants"])
+    assert sorted(g.panel_names) == ["back_left", "back_right", "front_left", "front_right"]
+    # seam partners start on the same 3D positions (the placement maps them together)
+    d = np.linalg.norm(g.x0[g.seams[:, 0]] - g.x0[g.seams[:, 1]], axis=1)
+    assert np.median(d) < 1e-3 and d.max() < 0.06
+    pid = {n: i for i, n in enumerate(g.panel_names)}
+    pairs = {tuple(sorted((g.panel_names[g.panel[a]], g.panel_names[g.panel[b]]))) for a, b in g.seams}
+    assert pairs == {("back_left", "front_left"), ("back_right", "front_right"),
+                     ("front_left", "front_right"), ("back_left", "back_right")}
+    # left leg on +X, front panels in front of the back ones
+    for side, sgn in (("left", 1), ("right", -1)):
+        assert sgn * g.x0[g.panel == pid[f"front_{side}"], 0].mean() > 0.05
+        assert g.x0[g.panel == pid[f"front_{side}"], 2].mean() > g.x0[g.panel == pid[f"back_{side}"], 2].mean()
+    # each leg opening surrounds its ankle, above it; the waist surrounds the waist centre
+    for side, ankle in (("left", LM.ankle_left), ("right", LM.ankle_right)):
+        X = g.x0[g.boundaries[f"leg_{side}"]]
+        assert np.all(X[:, 1] > ankle[1])
+        c = X.mean(0)
+        assert np.hypot(c[0] - ankle[0], c[2] - ankle[2]) < 0.05
+        assert np.min(np.hypot(X[:, 0] - ankle[0], X[:, 2] - ankle[2])) > 0.04
+    W = g.x0[g.boundaries["waist"]]
+    assert np.allclose(W[:, 1], LM.waist_center[1], atol=0.01)
+    r = np.hypot(W[:, 0] - LM.waist_center[0], W[:, 2] - LM.waist_center[2])
+    assert r.min() > LM.waist_girth / (2 * np.pi)
+    # the crotch seam runs below the hips: the lowest point of the centre seams is between the legs
+    centre = g.seams[np.isin(g.panel[g.seams[:, 0]], [pid["front_left"], pid["back_left"]])
+                     & np.isin(g.panel[g.seams[:, 1]], [pid["front_right"], pid["back_right"]])]
+    low = g.x0[centre.ravel()][:, 1].min()
+    assert LM.knee_left[1] < low < LM.hip_center[1]
+    # the waist is narrower than the hips (the trousers hang on them)
+    spec = template_spec("pants")
+    waist = sum(p.edge_length(k) for p in spec.panels for k, nm in p.boundary.items() if nm == "waist")
+    assert LM.waist_girth < waist < LM.hip_girth

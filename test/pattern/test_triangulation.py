@@ -93,3 +93,70 @@ def test_assembled_tube(curved):
     assert abs(g.total_area() - sum(areas)) <= 1e-9 * sum(areas)
     start = g.panel_vertex_start
     assert start[0] == 0 and start[-1] == len(g.rest)
+
+
+def _panel_quality(g):
+    q = triangle_quality_2d(g.rest, g.faces)
+    return {p.name: float(q[g.panel[g.faces[:, 0]] == i].min()) for i, p in enumerate(g.panels)}
+
+
+def _check_garment(g):
+    """Every panel: min q ≥ 0.30, area = its outline's to 1e-9; seams sew equal vertex counts."""
+    bad = {k: round(v, 3) for k, v in _panel_quality(g).items() if v < 0.30}
+    assert not bad, f"panels below q = 0.30: {bad}"
+    for i, p in enumerate(g.panels):
+        F = g.faces[g.panel[g.faces[:, 0]] == i]
+        a, b, c = g.rest[F[:, 0]], g.rest[F[:, 1]], g.rest[F[:, 2]]
+        signed = 0.5 * ((b - a)[:, 0] * (c - a)[:, 1] - (b - a)[:, 1] * (c - a)[:, 0])
+        assert np.all(signed > 0)
+        poly = polygon_area(g.rest[p.loop])
+        assert abs(signed.sum() - poly) <= 1e-9 * poly
+    # sewn boundary edges pair one to one: a seam is a set of edge pairs, each edge used once
+    P = g.seam_edge_pairs()
+    assert len(P) > 0
+    ea = {tuple(sorted(r)) for r in P[:, :2].tolist()}
+    eb = {tuple(sorted(r)) for r in P[:, 2:].tolist()}
+    assert len(ea) == len(P) and len(eb) == len(P)
+
+
+@pytest.mark.parametrize("name,edge", [(n, 0.03) for n in ("tshirt", "longsleeve", "dress", "skirt", "pants")]
+                         + [("tshirt", 0.012), ("pants", 0.012)])
+def test_templates_quality(name, edge):
+    from diffavatar_core.pattern.templates import TEMPLATES, make_template
+    if name not in TEMPLATES:
+        pytest.skip(f"no built-in template {name!r}")
+    _check_garment(make_template(name, edge_length=edge))
+
+
+@pytest.mark.parametrize("name,edge", [(n, 0.03) for n in ("shirt_mean", "hoody_mean", "dress_pencil", "js_mean_all")]
+                         + [("shirt_mean", 0.012)])
+def test_garmentcode_quality(name, edge):
+    """GarmentCode panels have source edges of a few mm next to long ones (shirt_mean's sleeves,
+    js_mean_all's trousers): the boundary is graded from them, so every panel reaches q ≥ 0.30."""
+    from conftest import shared_file
+    from diffavatar_core.pattern.garmentcode import load_garmentcode
+    g = load_garmentcode(shared_file("garmentcode", f"{name}_specification.json"), edge_length=edge)
+    _check_garment(g)
+
+
+def test_graded_boundary_next_to_a_short_edge():
+    """A 4 mm edge between long ones: the long edges' spacing grows from 4 mm towards h, the
+    mesh keeps q ≥ 0.30, and a seam partner of a graded edge gets the same fractions."""
+    V = np.array([[0, 0], [0.3, 0], [0.3, 0.2], [0.004, 0.2], [0, 0.2]], float)
+    a = PanelSpec("a", V, Placement([0, 0, 0], [1, 0, 0], [0, 1, 0]))
+    b = PanelSpec("b", np.array([[0, 0], [0.3, 0], [0.3, 0.2], [0, 0.2]], float),
+                  Placement([0, 0, -0.1], [-1, 0, 0], [0, 1, 0]))
+    g = build_garment(PatternSpec("t", [a, b], [SeamSpec("a", 2, "b", 0)]), edge_length=0.03)
+    _check_garment(g)
+    loop = g.panels[0].loop
+    L = np.linalg.norm(g.rest[np.roll(loop, -1)] - g.rest[loop], axis=1)
+    assert L.min() == pytest.approx(0.004, rel=1e-6) and L.max() < 0.03 * 1.01
+    # neighbouring boundary segments differ by at most the grading (plus rounding of counts)
+    ratio = np.maximum(L / np.roll(L, 1), np.roll(L, 1) / L)
+    assert ratio.max() < 1.6
+    # the seam's two sides (0.296 and 0.3 m) have equal counts at the same fractions: every
+    # pair of sewn segments has the ratio of the edge lengths
+    S = g.seam_edge_pairs()
+    la = np.linalg.norm(g.rest[S[:, 1]] - g.rest[S[:, 0]], axis=1)
+    lb = np.linalg.norm(g.rest[S[:, 3]] - g.rest[S[:, 2]], axis=1)
+    assert np.allclose(la / lb, 0.296 / 0.3, rtol=1e-6) and la.min() < 0.01
