@@ -18,15 +18,15 @@ class Weights:
     interior: float = 1.0
     seam: float = 100.0
     curvature: float = 1.0
-    body_prior: float = 1e-4
+    body_prior: float = 1e-2
 
 
 @dataclass(frozen=True)
 class StepSizes:
     handles: float = 0.004
     log10_bending: float = 0.1
-    shape: float = 0.05
-    pose: float = 0.01
+    shape: float = 0.02
+    pose: float = 0.002
 
 
 @dataclass(frozen=True)

@@ -697,3 +697,10 @@ def test_the_default_runner_recovers_the_sample_scan(setup_service, tmp_path):
     assert summary["metrics"]["chamfer_final_cm"] == pytest.approx(res.chamfer_final_cm, rel=1e-9)
     assert {"pattern.json", "pattern.svg", "garment_draped.obj", "body.obj", "preview.png"} <= {p.name for p in out.iterdir()}
     assert 0 < summary["metrics"]["ssim"] <= 1
+    # the assets are what the core's Python API computes for the same input
+    from diffavatar_core.pipeline import recover
+    ref = recover((raw.vertices, raw.faces, raw.labels), {"units": "cm", "iterations": 2})
+    got = convert.assets_to_arrays(res)
+    np.testing.assert_allclose(got["garment_vertices"], ref.garment_vertices, rtol=0, atol=1e-6)
+    np.testing.assert_allclose(got["rest_xy"], ref.pattern.rest_xy, rtol=0, atol=1e-9)
+    assert res.chamfer_final_cm == pytest.approx(ref.metrics["chamfer_final_cm"], rel=1e-9)
