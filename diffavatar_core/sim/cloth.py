@@ -150,14 +150,18 @@ class Cloth:
         n = _validate.positive_int("max_steps", max_steps)
         if not len(seams):
             return 0
+        def gap():
+            x = self.state.x
+            return np.linalg.norm(x[seams[:, 0]] - x[seams[:, 1]], axis=1).max()
+        if gap() < gap_tol:      # already sewn (a placement with seam partners together)
+            return 0
         p = _sim_params(1 / 120, iterations, (0.0, 0.0, 0.0), 0.0, 0.01, 50.0)
         for k in range(n):
             if cancel is not None and cancel.cancelled:
                 raise _core.Cancelled("cancelled while sewing")
             self.solver.step(self.state, p, 1)
             self.state.v = np.zeros_like(self.state.x)
-            x = self.state.x
-            if np.linalg.norm(x[seams[:, 0]] - x[seams[:, 1]], axis=1).max() < gap_tol:
+            if gap() < gap_tol:
                 return k + 1
         return n
 
