@@ -28,6 +28,7 @@ import argparse
 import json
 import os
 import platform
+import sys
 import time
 import traceback
 
@@ -160,6 +161,11 @@ def summary(x, x0, solver):
 
 def main(argv=None):
     a = parse_args(argv)
+    # Warp prints its start-up banner and module loads on stdout (also from native code): send
+    # fd 1 to stderr for the whole run and write the JSON to the original stdout at the end.
+    sys.stdout.flush()
+    json_out = os.fdopen(os.dup(1), "w")
+    os.dup2(2, 1)
     if a.threads:
         dc.set_num_threads(a.threads)
     threads = dc.num_threads()
@@ -269,7 +275,9 @@ def main(argv=None):
                       "message": r.message})
     out["load_average_end"] = [round(v, 2) for v in os.getloadavg()]
     out["total_s"] = time.perf_counter() - t0
-    print(json.dumps(out, indent=2))
+    sys.stdout.flush()
+    json_out.write(json.dumps(out, indent=2) + "\n")
+    json_out.flush()
 
 
 REF_SPRING_KE = 0.1  # N/m; see reference_notes
