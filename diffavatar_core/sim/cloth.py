@@ -140,12 +140,16 @@ class Cloth:
         p = _sim_params(dt, iterations, gravity, damping, contact_radius, max_speed)
         return self.solver.step(self.state, p, _validate.positive_int("n", n))
 
-    def sew(self, max_steps: int = 60, gap_tol: float = 1e-3, iterations: int = 100, cancel=None) -> int:
+    def sew(self, max_steps: int = 60, gap_tol: float = 1e-3, iterations: int = 100, min_gap: float = 0.05,
+            cancel=None) -> int:
         """Quasi-static sewing before a drape: XPBD steps without gravity whose velocities are
         discarded after each step, until every seam pair is closer than gap_tol (m) or max_steps.
         Closing wide seam gaps in ordinary steps turns the closure into speed (a 30 cm gap
         closed in one 1/120 s step is 36 m/s) and can throw a garment off the body; sewn first,
-        a skirt's waist is closed before gravity pulls it over the hips. Returns steps taken."""
+        a skirt's waist is closed before gravity pulls it over the hips. A garment whose widest
+        seam gap is below min_gap (m) is left alone: such gaps close harmlessly in the drape's
+        first steps (and a quasi-static start measurably slowed the trousers' settling).
+        Returns steps taken."""
         seams = np.asarray(self.model.seams).reshape(-1, 2)
         n = _validate.positive_int("max_steps", max_steps)
         if not len(seams):
@@ -153,7 +157,7 @@ class Cloth:
         def gap():
             x = self.state.x
             return np.linalg.norm(x[seams[:, 0]] - x[seams[:, 1]], axis=1).max()
-        if gap() < gap_tol:      # already sewn (a placement with seam partners together)
+        if gap() < max(gap_tol, min_gap):   # already sewn, or nearly
             return 0
         p = _sim_params(1 / 120, iterations, (0.0, 0.0, 0.0), 0.0, 0.01, 50.0)
         for k in range(n):

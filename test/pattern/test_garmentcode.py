@@ -4,7 +4,7 @@ import json
 import numpy as np
 import pytest
 
-from conftest import shared_file
+from shared_data import shared_file
 from diffavatar_core.pattern import polygon_area, triangle_quality_2d
 from diffavatar_core.pattern.garmentcode import _arc, garmentcode_spec, load_garmentcode
 

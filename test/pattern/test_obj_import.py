@@ -4,7 +4,7 @@ import warnings
 import numpy as np
 import pytest
 
-from conftest import shared_file
+from shared_data import shared_file
 from diffavatar_core.pattern.obj_import import load_obj_pattern
 
 

@@ -78,7 +78,7 @@ def test_pants_pattern_and_placement():
     the 'pants' class, side seams, inseams and the centre front/back seams through the crotch;
     each leg placed as a tube around its leg axis, the seat around the hips."""
     import yaml
-    from conftest import REPO
+    from shared_data import REPO
     labels = yaml.safe_load((REPO / "config" / "labels.yaml").read_text())
     g = make_template("pants", edge_length=0.03)
     assert set(g.boundaries) == set(labels["garment_openings"]["pants"])

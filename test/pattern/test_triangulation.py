@@ -133,7 +133,7 @@ def test_templates_quality(name, edge):
 def test_garmentcode_quality(name, edge):
     """GarmentCode panels have source edges of a few mm next to long ones (shirt_mean's sleeves,
     js_mean_all's trousers): the boundary is graded from them, so every panel reaches q ≥ 0.30."""
-    from conftest import shared_file
+    from shared_data import shared_file
     from diffavatar_core.pattern.garmentcode import load_garmentcode
     g = load_garmentcode(shared_file("garmentcode", f"{name}_specification.json"), edge_length=edge)
     _check_garment(g)
