@@ -414,6 +414,7 @@ def _pants_spec(lm: BodyLandmarks, m: PantsMeasurements) -> PatternSpec:
 
 TEMPLATES = {
     "tshirt": "short-sleeve t-shirt, hip length",
+    "polo": "polo shirt: the t-shirt with a stand-up collar band (no placket)",
     "longsleeve": "long-sleeve shirt",
     "dress": "short-sleeve dress, knee length, flared",
     "skirt": "A-line skirt, knee length",
@@ -421,11 +422,38 @@ TEMPLATES = {
 }
 
 
+def _polo_spec(lm: BodyLandmarks, m: TopMeasurements, collar_height: float = 0.04) -> PatternSpec:
+    """The t-shirt with a collar band: a rectangle whose lower edge, split at the two neck
+    points, is sewn along the front neckline (right → left) and the back neckline (left →
+    right); its ends meet in a seam at the right neck point; its upper edge is the neckline
+    opening. Placed as a ring around the neck (radius: neckline length / 2π) whose front centre
+    faces +Z; the placket of a real polo is left out."""
+    spec = _top_spec("polo", lm, m)
+    front, back = spec.panels[0], spec.panels[1]
+    a, b = front.edge_length(4), back.edge_length(4)
+    front.boundary = {0: "hem"}
+    back.boundary = {0: "hem"}
+    h = collar_height
+    V = np.array([[0.0, 0.0], [a, 0.0], [a + b, 0.0], [a + b, h], [0.0, h]])
+    R = (a + b) / (2 * np.pi)
+    nb = lm.neck_base
+    place = Placement([nb[0], nb[1] + 0.01, nb[2] + R], [1, 0, 0], [0, 1, 0], u0=a / 2, v0=0.0, radius=R)
+    collar = PanelSpec("collar", V, place, boundary={3: "neckline"}, grain=0.0)
+    spec.panels.append(collar)
+    # collar edge 0 runs right → left along the front neckline (front edge 4 runs left → right),
+    # edge 1 left → right along the back one (back edge 4 runs right → left, seen from behind)
+    spec.seams += [SeamSpec("collar", 0, "front", 4), SeamSpec("collar", 1, "back", 4),
+                   SeamSpec("collar", 2, "collar", 4)]
+    return spec
+
+
 def template_spec(name: str, landmarks: BodyLandmarks | None = None, **measurements) -> PatternSpec:
     """The parametric specification of a built-in template; measurements override defaults."""
     lm = landmarks or default_landmarks()
     if name == "tshirt":
         return _top_spec(name, lm, replace(TopMeasurements(), **measurements))
+    if name == "polo":
+        return _polo_spec(lm, replace(TopMeasurements(neck_width=0.18, front_neck_depth=0.06), **measurements))
     if name == "longsleeve":
         base = TopMeasurements(sleeve_length=0.58, bicep_width=0.34, cuff_width=0.24, fold_radius=0.17)
         return _top_spec(name, lm, replace(base, **measurements))

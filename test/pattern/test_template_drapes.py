@@ -9,10 +9,10 @@ from diffavatar_core.sim import drape_job
 
 # XPBD step budgets before the Newton refinement: the tops converge from 250 steps (unsettled)
 # as from 400 with the same residual, in about half the time; skirt and pants settle in ~300
-MAX_STEPS = {"longsleeve": 250, "dress": 250, "skirt": 400, "pants": 400}
+MAX_STEPS = {"longsleeve": 250, "dress": 250, "skirt": 400, "pants": 400, "polo": 300}
 
 
-@pytest.mark.parametrize("garment", ["longsleeve", "dress", "skirt", "pants"])
+@pytest.mark.parametrize("garment", ["longsleeve", "dress", "skirt", "pants", "polo"])
 def test_template_drapes_on_the_default_body(garment, tmp_path):
     info, cloth, g, (bv, bf) = drape_job.execute(tmp_path, garment, max_steps=MAX_STEPS[garment], edge=0.04)
     assert info["converged"] and not info["diverged"], info["message"]
@@ -20,7 +20,14 @@ def test_template_drapes_on_the_default_body(garment, tmp_path):
     assert info["max_penetration_mm"] <= 0.1 * 4.0     # 10% of the 4 mm collision thickness
     x = np.asarray(cloth.x)
     top = bv[:, 1].max()
-    if garment in ("longsleeve", "dress"):
+    if garment == "polo":
+        # the collar band stands around the neck: its upper edge above the neck base, all round
+        lm = drape_job_landmarks()
+        collar = x[g["boundaries"]["neckline"]]
+        assert collar[:, 1].min() > lm.neck_base[1]
+        r = np.hypot(collar[:, 0] - lm.neck_base[0], collar[:, 2] - lm.neck_base[2])
+        assert r.max() < 0.12
+    if garment in ("longsleeve", "dress", "polo"):
         # hangs on the shoulders; the sleeves stay around the arms
         assert x[:, 1].max() > 0.75 * top
         for side, sh in (("left", 1), ("right", -1)):

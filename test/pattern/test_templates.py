@@ -9,6 +9,7 @@ from diffavatar_core.pattern.templates import TEMPLATES, default_landmarks, make
 
 LM = default_landmarks()
 OPENINGS = {"tshirt": {"hem", "neckline", "sleeve_left", "sleeve_right"},
+            "polo": {"hem", "neckline", "sleeve_left", "sleeve_right"},
             "longsleeve": {"hem", "neckline", "sleeve_left", "sleeve_right"},
             "dress": {"hem", "neckline", "sleeve_left", "sleeve_right"},
             "skirt": {"hem", "waist"},
@@ -31,7 +32,10 @@ def test_pattern_quality_and_seams(garment):
     lb = np.linalg.norm(g.rest[P[:, 3]] - g.rest[P[:, 2]], axis=1)
     assert np.max(np.abs(la - lb) / la) < 0.01
     assert CurvatureRegularizer(g).value_and_grad(g.rest)[0] < 1e-24
-    assert SeamLengthRegularizer(g).value_and_grad(g.rest)[0] < 1e-6 * np.sum(la ** 4)
+    # (the polo's straight collar base is sewn to curved necklines: there the chords of the
+    # arc-length samples differ by up to ~0.2%, i.e. (la² − lb²)² ≤ 4·(2e-3)²·l⁴ per pair)
+    tol = 2e-5 if name == "polo" else 1e-6
+    assert SeamLengthRegularizer(g).value_and_grad(g.rest)[0] < tol * np.sum(la ** 4)
 
 
 def test_placement_is_sewable_and_outside_the_body(garment):
