@@ -411,6 +411,11 @@ def main(args=None):
         executor.spin()
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except Exception:
+        # SIGINT shuts the context down; an executor caught between two waits then fails to
+        # build its wait set on the dead context: that is the shutdown, not an error
+        if node.context.ok():
+            raise
     finally:
         node.destroy_node()
         rclpy.try_shutdown()
