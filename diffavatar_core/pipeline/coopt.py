@@ -110,18 +110,10 @@ class CoOptObjective:
     def drape_at(self, rest, bend, body_vertices):
         """Equilibrium at these controls, warm-started from the last one (Newton; a full XPBD +
         Newton drape if that fails). Raises ValueError when no equilibrium is reached."""
-        o, cloth = self.opts, self.cloth
-        cloth.set_control(rest=rest, bend_stiffness=bend, body_vertices=body_vertices)  # ValueError: inverted
-        cloth.state.x = self.x_warm
-        cloth.state.v = np.zeros_like(self.x_warm)
-        _, res = cloth.refine(keep_anchor=False, residual_tol=o.residual_tol, refine_iterations=80, cancel=self.cancel)
-        if not res <= o.residual_tol:
-            cloth.state.x = self.x_warm
-            r = cloth.drape(max_steps=max(o.drape_steps, 1), iterations=o.drape_iterations, min_steps=1,
-                            residual_tol=o.residual_tol, refine_iterations=120, raise_on_divergence=False,
-                            cancel=self.cancel)
-            if not r.converged:
-                raise ValueError(f"drape did not converge: {r.message}")
+        o = self.opts
+        self.cloth.set_control(rest=rest, bend_stiffness=bend, body_vertices=body_vertices)  # ValueError: inverted
+        self.cloth.reequilibrate(self.x_warm, o.residual_tol, max_steps=o.drape_steps, iterations=o.drape_iterations,
+                                 cancel=self.cancel)
 
     def __call__(self, params):
         """(φ, {group: dφ/dgroup}, {term: value}); raises ValueError for an invalid iterate."""

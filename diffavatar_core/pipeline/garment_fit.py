@@ -62,17 +62,8 @@ def fit_garment(cloth: Cloth, faces, panel_of_vertex, garment_loops: dict, scan_
         if np.any(np.linalg.det(maps) <= 0.2):
             raise ValueError("a panel map degenerates")
         cloth.set_control(rest=rest, bend_stiffness=bend)  # raises ValueError on inverted triangles
-        cloth.state.x = state["x"]                          # warm start from the last equilibrium
-        cloth.state.v = np.zeros_like(state["x"])
-        # A small change of θ moves the equilibrium a little: Newton from the last one first,
-        # a full (XPBD + Newton) re-drape only if that fails.
-        _, res = cloth.refine(keep_anchor=False, residual_tol=kw["residual_tol"],
-                              refine_iterations=kw["refine_iterations"])
-        if not res <= kw["residual_tol"]:
-            cloth.state.x = state["x"]
-            r = cloth.drape(raise_on_divergence=False, **kw)
-            if not r.converged:
-                raise ValueError(f"drape did not converge: {r.message}")
+        # a small change of θ moves the equilibrium a little: re-solve from the last one
+        cloth.reequilibrate(state["x"], kw["residual_tol"], kw["refine_iterations"], kw["max_steps"])
         x = np.array(cloth.x)
         li = interior_loss(x, faces, gsamples, scan_points)
         lb = boundary_loss(x, garment_loops, scan_loops)

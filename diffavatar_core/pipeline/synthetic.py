@@ -188,12 +188,9 @@ def scan_like(garment_x, garment_faces, body_vertices, body_faces, garment_label
 
 
 def to_scan_frame(V_core, units: str = "cm", up: str = "y") -> np.ndarray:
-    """Core frame (m, Y up) → scan frame: scaled to `units`; Z up means (x, y, z)_core = (x, z, −y)_scan."""
-    scale = {"m": 1.0, "cm": 100.0, "mm": 1000.0}[units]
-    P = np.asarray(V_core, float)
-    if up == "z":
-        P = np.column_stack([P[:, 0], -P[:, 2], P[:, 1]])
-    return P * scale
+    """Core frame (m, Y up) → a scan frame in `units` with `up` vertical (ScanTransform's inverse)."""
+    from ..scan.frame import ScanTransform
+    return ScanTransform.from_options(units, up).to_scan(V_core)
 
 
 def make_case(template: str = "skirt", seed: int = 0, bend_stiffness: float | None = None,

@@ -14,7 +14,6 @@ from diffavatar_core.pattern.templates import make_template
 from diffavatar_core.pipeline import RecoverOptions, RecoveryError, recover
 from diffavatar_core.pipeline.coopt import CoOptObjective
 from diffavatar_core.pipeline.output import write_result
-from diffavatar_core.pipeline.synthetic import make_case, scan_like, to_scan_frame
 from diffavatar_core.demo import SAMPLE, TRUTH
 from diffavatar_core.scan import ImplausibleSizeError, LabelError, NoGarmentError, NonFiniteError, ScanError
 from diffavatar_core.sim.cloth import Cloth
@@ -197,6 +196,8 @@ def test_units_and_up_axis_give_the_same_scan_frame():
     V, F, L = _sample_arrays()
     a = load_scan((V, F, L), units="cm", up="y")
     core = V / 100.0
-    b = load_scan((to_scan_frame(core, "mm", "z"), F, L), units="mm", up="z")
+    # written out independently of the code under test: Z up means (x, y, z)_core = (x, z, −y)_scan
+    mm_z = 1000.0 * np.column_stack([core[:, 0], -core[:, 2], core[:, 1]])
+    b = load_scan((mm_z, F, L), units="mm", up="z")
     assert np.allclose(a.vertices, b.vertices, atol=1e-9)
     assert set(a.boundaries) == set(b.boundaries) == {"waist", "hem"}
