@@ -115,3 +115,32 @@ def boundary_loss(X, garment_loops: dict, scan_loops: dict) -> BoundaryLoss:
         np.add.at(grad, idx[seg], (1 - t)[:, None] * r_s / len(S))
         np.add.at(grad, idx[(seg + 1) % len(idx)], t[:, None] * r_s / len(S))
     return BoundaryLoss(float(sum(per_loop.values())), per_loop, grad)
+
+
+@dataclass(frozen=True)
+class BodyDataLoss:
+    value: float       # mean over the scan's body points of d²(point, body surface), m² (trimmed pairs count 0)
+    used: int          # points closer than the trim distance
+    grad: np.ndarray   # dL/dX_body, #Vb×3
+
+
+def body_data_loss(X, F, points, trim_distance: float = 0.05) -> BodyDataLoss:
+    """One-sided scan → body term of the co-optimization: the scan's body-labelled points (m)
+    should lie on the posed body surface (X: #Vb×3 m, F: faces). One-sided because the body under
+    the garment is not seen. Points farther than `trim_distance` (m; stray fragments, hair) are
+    ignored. The gradient is exact: at a fixed closest point on a face the squared distance's
+    derivative w.r.t. the face's vertices is −2 b_k (p − c) (the closest point is optimal)."""
+    X, F = val.mesh("X", X, "F", F)
+    P = val.points("points", points)
+    grad = np.zeros_like(X)
+    if not len(P):
+        return BodyDataLoss(0.0, 0, grad)
+    tri, bary, cp = _core.closest_points_on_mesh(X, F, np.ascontiguousarray(P))
+    r = P - np.asarray(cp)
+    d2 = (r * r).sum(1)
+    keep = d2 < trim_distance ** 2 if trim_distance > 0 else np.ones(len(P), bool)
+    n = len(P)
+    Fi = F[np.asarray(tri)[keep]]
+    contrib = -2.0 * np.asarray(bary)[keep][:, :, None] * r[keep][:, None, :] / n
+    np.add.at(grad, Fi.reshape(-1), contrib.reshape(-1, 3))
+    return BodyDataLoss(float(d2[keep].sum() / n), int(keep.sum()), grad)

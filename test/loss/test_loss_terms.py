@@ -101,3 +101,39 @@ def test_bad_inputs_are_named():
         loss.boundary_loss(X, {"hem": [0, 1]}, {"hem": X[:3]})
     with pytest.raises(ValueError, match="n"):
         loss.garment_samples(X, F, 0)
+
+
+def _sphere(n=12):
+    """A closed UV sphere of radius 0.1 m (vertices, faces)."""
+    th, ph = np.meshgrid(np.linspace(0.2, np.pi - 0.2, n), np.linspace(0, 2 * np.pi, 2 * n, endpoint=False), indexing="ij")
+    V = 0.1 * np.column_stack([np.sin(th).ravel() * np.cos(ph).ravel(), np.cos(th).ravel(),
+                               np.sin(th).ravel() * np.sin(ph).ravel()])
+    F = []
+    for i in range(n - 1):
+        for j in range(2 * n):
+            a, b = i * 2 * n + j, i * 2 * n + (j + 1) % (2 * n)
+            F += [[a, a + 2 * n, b], [b, a + 2 * n, b + 2 * n]]
+    return V, np.array(F, np.int32)
+
+
+def test_body_data_loss_gradient_matches_central_differences():
+    rng = np.random.default_rng(3)
+    V, F = _sphere()
+    P = 1.05 * V[rng.choice(len(V), 60, replace=False)] + rng.normal(scale=0.003, size=(60, 3))
+    L = loss.body_data_loss(V, F, P)
+    assert L.value > 0 and L.used == 60
+    for i, d in zip(rng.choice(len(V), 6, replace=False), rng.integers(0, 3, 6)):
+        Vp, Vm = V.copy(), V.copy()
+        Vp[i, d] += 1e-7
+        Vm[i, d] -= 1e-7
+        fd = (loss.body_data_loss(Vp, F, P).value - loss.body_data_loss(Vm, F, P).value) / 2e-7
+        assert abs(L.grad[i, d] - fd) <= 1e-6 * max(abs(fd), np.abs(L.grad).max()), (i, d, L.grad[i, d], fd)
+
+
+def test_body_data_loss_is_zero_on_the_surface_and_ignores_far_points():
+    V, F = _sphere()
+    on = V[::7]
+    assert loss.body_data_loss(V, F, on).value < 1e-24
+    far = np.vstack([on, [[0.0, 0.5, 0.0]]])   # a fragment 40 cm away: trimmed
+    L = loss.body_data_loss(V, F, far, trim_distance=0.05)
+    assert L.used == len(on) and L.value < 1e-24 and np.abs(L.grad).max() < 1e-12
