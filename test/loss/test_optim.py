@@ -3,6 +3,7 @@ iterate kept, cancellation."""
 import numpy as np
 import pytest
 
+from diffavatar_core.lbfgs import minimize_lbfgs
 from diffavatar_core.optim import GroupAdam, minimize
 
 
@@ -58,3 +59,50 @@ def test_non_finite_gradient_and_bad_step_sizes_are_errors():
     opt = GroupAdam({"a": 0.1})
     with pytest.raises(FloatingPointError, match="a"):
         opt.propose({"a": np.zeros(2)}, {"a": np.array([np.nan, 0])})
+
+
+def _rosenbrock(p):
+    x, y = p["a"][0], p["b"][0] * 100.0   # 'b' is a group 100× smaller than 'a'
+    v = (1 - x) ** 2 + 100 * (y - x * x) ** 2
+    gx = -2 * (1 - x) - 400 * x * (y - x * x)
+    gy = 200 * (y - x * x) * 100.0
+    return float(v), {"a": np.array([gx]), "b": np.array([gy])}, {}
+
+
+def test_lbfgs_finds_the_rosenbrock_minimum_across_scaled_groups():
+    """The curved valley of Rosenbrock's function (minimum at x = y = 1), one coordinate in a
+    group 100× smaller: L-BFGS with per-group scales reaches it in far fewer steps than Adam."""
+    res = minimize_lbfgs(_rosenbrock, {"a": np.array([-1.2]), "b": np.array([0.01])}, {"a": 0.1, "b": 1e-3},
+                         max_iterations=200, rel_tol=1e-12, patience=3)
+    assert abs(res.params["a"][0] - 1) < 1e-4 and abs(res.params["b"][0] * 100 - 1) < 1e-4, res.params
+    values = [h["value"] for h in res.history]
+    assert all(b <= a for a, b in zip(values, values[1:]))   # Armijo: monotone
+    assert res.value == values[-1] < 1e-8 and res.iterations < 100
+    adam = minimize(_rosenbrock, {"a": np.array([-1.2]), "b": np.array([0.01])}, {"a": 0.1, "b": 1e-3},
+                    max_iterations=res.iterations)
+    assert adam.value > 100 * res.value
+
+
+def test_lbfgs_backtracks_out_of_invalid_regions():
+    evaluate, target = _quadratic(scale=1.0)
+
+    def constrained(p):  # a[0] > 0.5 is invalid; the unconstrained minimum (a[0] = 1) lies there
+        if p["a"][0] > 0.5:
+            raise ValueError("inverted triangle")
+        return evaluate(p)
+
+    res = minimize_lbfgs(constrained, {"a": np.zeros(2), "b": np.zeros(1)}, {"a": 0.3, "b": 0.3},
+                         max_iterations=100)
+    assert res.rejected > 0 and res.params["a"][0] <= 0.5   # never left the valid region
+    values = [h["value"] for h in res.history]
+    assert all(b <= a for a, b in zip(values, values[1:])) and res.value < 0.3 * values[0]
+
+
+def test_lbfgs_cancel_and_bad_scales():
+    evaluate, _ = _quadratic(scale=1.0)
+    calls = []
+    res = minimize_lbfgs(evaluate, {"a": np.zeros(2), "b": np.zeros(1)}, {"a": 0.01, "b": 0.01},
+                         max_iterations=100, on_iteration=calls.append, cancelled=lambda: len(calls) >= 3)
+    assert res.stopped == "cancelled" and res.iterations == 2
+    with pytest.raises(ValueError, match="step"):
+        minimize_lbfgs(evaluate, {"a": np.zeros(2), "b": np.zeros(1)}, {"a": 0.0, "b": 1.0})
