@@ -7,7 +7,8 @@ random shape → sew + drape → scan-like mesh (subdivided, 2 mm noise, holes, 
 fragments, cm). Recovery starts from the unperturbed template and the default material.
 Variants: full; no_cage (every pattern vertex optimized); no_seam (α = 0); no_curvature (β = 0).
 
-Run: `.venv/bin/python bench/recover.py [--cases N] [--iterations N] [--variants full,no_cage]`.
+Run: `.venv/bin/python bench/recover.py [--cases N] [--iterations N] [--variants full,no_cage]
+[--output-edge 0.008] [--first-case K]`.
 """
 import argparse
 import json
@@ -48,8 +49,8 @@ def pattern_edge_error_cm(rec, gt) -> float:
     return 100 * float(np.mean(np.abs(np.concatenate(a) - np.concatenate(b))))
 
 
-def options_for(variant, iterations):
-    o = RecoverOptions.from_config(units="cm", iterations=iterations)
+def options_for(variant, iterations, output_edge=0.0):
+    o = RecoverOptions.from_config(units="cm", iterations=iterations, output_edge_length=output_edge)
     if variant == "no_cage":
         return o.with_(parametrization="vertices")
     if variant == "no_seam":
@@ -59,9 +60,9 @@ def options_for(variant, iterations):
     return o
 
 
-def run_case(case, variant, iterations):
+def run_case(case, variant, iterations, output_edge=0.0):
     t0 = time.perf_counter()
-    r = recover((case.scan_vertices, case.scan_faces, case.scan_labels), options_for(variant, iterations))
+    r = recover((case.scan_vertices, case.scan_faces, case.scan_labels), options_for(variant, iterations, output_edge))
     m = r.metrics
     area_gt = case.garment.total_area()
     return {
@@ -73,7 +74,8 @@ def run_case(case, variant, iterations):
         "bending_log10_error": abs(math.log10(r.material.bending_stiffness) - math.log10(case.bend_stiffness)),
         "body_vertex_error_cm": 100 * float(np.linalg.norm(r.body_vertices - case.body_vertices, axis=1).mean()),
         "mesh_quality_min": m["mesh_quality_min"], "seam_length_mismatch_max_pct": m["seam_length_mismatch_max_pct"],
-        "garment_vertices": int(len(r.garment_vertices)), "wall_s": time.perf_counter() - t0,
+        "garment_vertices": int(len(r.garment_vertices)), "optimized_vertices": m.get("optimized_vertices"),
+        "wall_s": time.perf_counter() - t0, "warnings": [w for w in r.warnings if "fragment" not in w],
         "iterations": r.iterations, "stopped": m["stopped"],
     }
 
@@ -84,13 +86,17 @@ def main():
     ap.add_argument("--iterations", type=int, default=30)
     ap.add_argument("--templates", default="skirt", help="comma-separated (skirt, tshirt, longsleeve, dress)")
     ap.add_argument("--variants", default=",".join(VARIANTS))
+    ap.add_argument("--output-edge", type=float, default=0.0,
+                    help="m; > 0: the result carried to a finer output mesh (coarse-to-fine; e.g. 0.008 ≈ 10k vertices)")
+    ap.add_argument("--first-case", type=int, default=0, help="index of the first case (to split runs)")
     args = ap.parse_args()
     templates = args.templates.split(",")
     variants = args.variants.split(",")
     out = {"benchmark": "recover", "threads": dc.num_threads(), "cpus": os.cpu_count(),
-           "machine": platform.machine(), "iterations": args.iterations, "cases": []}
+           "machine": platform.machine(), "iterations": args.iterations, "output_edge_m": args.output_edge,
+           "optimizer": RecoverOptions.from_config().optimizer, "cases": []}
     per_variant = {v: [] for v in variants}
-    for k in range(args.cases):
+    for k in range(args.first_case, args.cases):
         tpl = templates[k % len(templates)]
         # bending spread over two decades across the cases
         bend = 10 ** (-6 + 2 * k / max(args.cases - 1, 1))
@@ -98,12 +104,13 @@ def main():
         entry = {"template": tpl, "seed": 100 + k, "truth": {"measurements_m": case.measurements,
                                                              "bend_stiffness_Nm": bend}}
         for v in variants:
-            entry[v] = run_case(case, v, args.iterations)
+            entry[v] = run_case(case, v, args.iterations, args.output_edge)
             per_variant[v].append(entry[v])
         out["cases"].append(entry)
         print(json.dumps(entry), flush=True)
     keys = ("chamfer_ratio", "chamfer_final_cm", "pattern_area_error_pct", "pattern_edge_error_cm",
-            "bending_log10_error", "body_vertex_error_cm", "mesh_quality_min", "wall_s", "iterations")
+            "bending_log10_error", "body_vertex_error_cm", "mesh_quality_min", "wall_s", "iterations",
+            "garment_vertices")
     out["mean"] = {v: {k: float(np.nanmean([r[k] for r in rs])) for k in keys} for v, rs in per_variant.items()}
     out["targets"] = {"chamfer_ratio": "<= 0.35", "pattern_area_error_pct": "<= 3", "bending_log10_error": "<= 0.15",
                       "body_vertex_error_cm": "<= 1.5", "wall_s": "<= 300 for a ~10k-vertex garment"}

@@ -17,6 +17,9 @@ def register(sub) -> None:
     p.add_argument("--units", default=None, choices=("m", "cm", "mm"), help="units of the scan (default m)")
     p.add_argument("--up", default=None, choices=("y", "z"), help="vertical axis of the scan (default y)")
     p.add_argument("--iterations", type=int, default=None, help="co-optimization iterations (config: 30)")
+    p.add_argument("--output-edge", type=float, default=None, metavar="M",
+                   help="edge length (m) of the output mesh when finer than the optimized one: the result is "
+                        "carried to it through the control cage and re-draped (config: 0 = off)")
     p.add_argument("--config", default=None, help="YAML merged over config/diffavatar.yaml")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_run)
@@ -60,7 +63,8 @@ def _run(args) -> int:
     from ..pipeline.output import write_result
     cfg = load_config(args.config)
     opts = RecoverOptions.from_config(cfg, garment_type=args.garment, template=args.template, units=args.units,
-                                      up=args.up, iterations=args.iterations)
+                                      up=args.up, iterations=args.iterations,
+                                      output_edge_length=args.output_edge)
     bar = None if args.quiet else ProgressBar()
     try:
         result = recover(pathlib.Path(args.scan), opts, progress=bar)
@@ -72,6 +76,7 @@ def _run(args) -> int:
     print(json.dumps({
         "output_dir": str(out), "garment_type": result.garment_type, "template": result.template_name,
         "iterations": result.iterations, "stopped": m.get("stopped"), "wall_s": round(result.wall_s, 1),
+        "garment_vertices": len(result.garment_vertices),
         "chamfer_initial_cm": round(m["chamfer_initial_cm"], 3), "chamfer_final_cm": round(m["chamfer_final_cm"], 3),
         "bending_stiffness_Nm": result.material.bending_stiffness, "mesh_quality_min": round(m["mesh_quality_min"], 3),
         "seam_length_mismatch_max_pct": round(m["seam_length_mismatch_max_pct"], 3), "ssim": m.get("ssim"),

@@ -4,7 +4,10 @@
 'without control cage' ablation —, log10 bending stiffness (one per garment or per panel), body
 shape ν and pose ψ}. Each evaluation re-drapes from the previous equilibrium (Newton from the
 warm start; a full XPBD + Newton drape only if that fails), evaluates
-    φ = ρ L_boundary + σ L_interior + α L_seam(x̄) + β L_curvature(x̄) + γ |(ν, ψ) − (ν, ψ)_fit|²,
+    φ = ρ L_boundary + σ L_interior + α L_seam(x̄) + β L_curvature(x̄)
+        + δ L_body(ν, ψ) + γ |(ν, ψ) − (ν, ψ)_fit|²,
+(L_body: the scan's visible body points to the posed body surface, full scans only — without it
+the body drifts to explain garment misfit),
 and gets dφ/dθ from the equilibrium adjoint (one sparse solve; the fast mode, exact at a
 converged drape with a fixed contact set — see diffavatar_core/adjoint.py), chained through W
 for ζ and through the skinning Jacobians for ν and ψ. Group Adam keeps the best iterate; an
@@ -18,7 +21,8 @@ import numpy as np
 
 from ..adjoint import equilibrium_gradient
 from ..body.params import BodyParams
-from ..loss import boundary_loss, garment_samples, interior_loss
+from ..loss import body_data_loss, boundary_loss, garment_samples, interior_loss
+from ..lbfgs import minimize_lbfgs
 from ..optim import minimize
 from ..pattern.regularizers import CurvatureRegularizer, SeamLengthRegularizer
 from .options import RecoverOptions
@@ -52,12 +56,13 @@ class CoOptObjective:
     draped to equilibrium on the body; scan_points (N, 3) m: the scan's garment samples;
     scan_loops: opening name → (K, 3) m (matched by name to garment.boundaries); cage: a
     pattern.ControlCage (parametrization 'cage', else every rest vertex is a parameter);
-    body_model/body_params: ν, ψ are parameters when given and opts.optimize_body.
+    body_model/body_params: ν, ψ are parameters when given and opts.optimize_body;
+    body_points (N, 3) m: the scan's body-labelled points (full scans; None or empty: no L_body).
     Parameter groups: handles ((H·2,) m), log_bend ((1,) or (G,) log10 N·m), shape ((K,)),
     pose ((J·3,) rad)."""
 
     def __init__(self, cloth, garment, scan_points, scan_loops: dict, opts: RecoverOptions, cage=None,
-                 body_model=None, body_params: BodyParams | None = None, cancel=None):
+                 body_model=None, body_params: BodyParams | None = None, cancel=None, body_points=None):
         self.cloth, self.g, self.opts, self.cage, self.cancel = cloth, garment, opts, cage, cancel
         self.faces = np.asarray(garment.faces, np.int32)
         self.scan_points = np.asarray(scan_points, np.float64)
@@ -70,7 +75,12 @@ class CoOptObjective:
         self.samples = garment_samples(cloth.x, self.faces, opts.samples, seed=0)
         self.use_body = bool(opts.optimize_body and body_model is not None and body_params is not None)
         self.model, self.p0 = body_model, (body_params.copy() if body_params is not None else None)
-        self.x_warm = np.array(cloth.x)
+        self.x_warm = np.array(cloth.x)   # start and anchor of every re-drape: the current iterate's drape
+        self.x_last = self.x_warm
+        bp = np.zeros((0, 3)) if body_points is None else np.asarray(body_points, np.float64).reshape(-1, 3)
+        if len(bp) > opts.samples:   # a fixed, reproducible subset
+            bp = bp[np.random.default_rng(0).choice(len(bp), opts.samples, replace=False)]
+        self.body_points = bp
 
     def initial_params(self) -> dict:
         c0, o = self.c0, self.opts
@@ -122,7 +132,8 @@ class CoOptObjective:
         mismatch = seam_mismatch_pct(self.g, rest)
         if mismatch > o.max_seam_mismatch_pct:
             raise ValueError(f"seam mismatch {mismatch:.1f}% above the limit")
-        self.drape_at(rest, bend, self.model.pose(bp) if self.use_body else None)
+        bv = self.model.pose(bp) if self.use_body else None
+        self.drape_at(rest, bend, bv)
         x = np.array(self.cloth.x)
         li = interior_loss(x, self.faces, self.samples, self.scan_points)
         lb = boundary_loss(x, self.loops, self.scan_loops) if self.loops else None
@@ -139,23 +150,36 @@ class CoOptObjective:
             grads["log_bend"] = gb if o.bending == "panel" else np.array([gb.sum()])
         if self.use_body:
             sl = self.model.param_slices()
-            gvec = self.model.vjp(bp, ga["body_vertices"])
+            g_body = np.asarray(ga["body_vertices"])
+            if len(self.body_points) and w.body_data > 0:
+                ld = body_data_loss(bv, self.model.faces, self.body_points, o.body_trim_distance)
+                terms["body_data"] = ld.value
+                value += w.body_data * ld.value
+                g_body = g_body + w.body_data * ld.grad
+            gvec = self.model.vjp(bp, g_body)
             dnu, dpsi = bp.shape - self.p0.shape, (bp.pose - self.p0.pose).reshape(-1)
             prior = float(dnu @ dnu + dpsi @ dpsi)
             terms["body_prior"] = prior
             value += w.body_prior * prior
             grads["shape"] = gvec[sl["shape"]] + 2 * w.body_prior * dnu
             grads["pose"] = gvec[sl["pose"]] + 2 * w.body_prior * dpsi
-        self.x_warm = x
+        self.x_last = x
         return float(value), grads, terms
+
+    def commit(self) -> None:
+        """The last evaluated point became the optimizer's current iterate: later re-drapes start
+        from (and are anchored to) its drape. Rejected trials never become warm starts — one may
+        have found another equilibrium (a skirt slid off the hips)."""
+        self.x_warm = self.x_last
 
 
 def co_optimize(cloth, garment, scan_points, scan_loops: dict, opts: RecoverOptions, cage=None,
                 body_model=None, body_params: BodyParams | None = None, on_iteration=None,
-                cancelled=lambda: False, cancel=None) -> CoOptResult:
+                cancelled=lambda: False, cancel=None, body_points=None) -> CoOptResult:
     """Minimizes CoOptObjective (same arguments) from the template's parameters with group Adam
     (opts.iterations accepted steps at most); the best iterate is re-draped and returned."""
-    obj = CoOptObjective(cloth, garment, scan_points, scan_loops, opts, cage, body_model, body_params, cancel)
+    obj = CoOptObjective(cloth, garment, scan_points, scan_loops, opts, cage, body_model, body_params, cancel,
+                         body_points)
     params = obj.initial_params()
     if opts.iterations == 0:
         value, _, terms = obj(params)
@@ -164,9 +188,42 @@ def co_optimize(cloth, garment, scan_points, scan_loops: dict, opts: RecoverOpti
             on_iteration(history[-1])
         best, it, rej, stopped = params, 0, 0, "max_iterations"
     else:
-        res = minimize(obj, params, obj.step_sizes(), max_iterations=opts.iterations, patience=opts.patience,
-                       on_iteration=on_iteration, cancelled=cancelled)
-        best, history, it, rej, stopped = res.params, res.history, res.iterations, res.rejected, res.stopped
+        # stage 1 (optional): the bending stiffness held while the pattern and body fit — a skirt
+        # cut too large can otherwise hide its extra cloth in softer folds and never come back
+        stages = [opts.iterations]
+        if "log_bend" in params and 0 < opts.bending_after < opts.iterations:
+            stages = [opts.bending_after, opts.iterations - opts.bending_after]
+        history, it, rej, stopped = [], 0, 0, "max_iterations"
+        for k, n in enumerate(stages):
+            held = {"log_bend": params["log_bend"]} if len(stages) == 2 and k == 0 else {}
+            free = {g: v for g, v in params.items() if g not in held}
+            lr = {g: v for g, v in obj.step_sizes().items() if g not in held}
+
+            def evaluate(p, held=held):
+                value, grads, terms = obj({**p, **held})
+                return value, {g: v for g, v in grads.items() if g not in held}, terms
+
+            def report(h, offset=it):
+                h = {**h, "iteration": h["iteration"] + offset}
+                if offset and h["iteration"] == offset:
+                    return   # the stage's starting point is the previous stage's last iterate
+                history.append(h)
+                if on_iteration:
+                    on_iteration(h)
+            if opts.optimizer == "lbfgs":
+                res = minimize_lbfgs(evaluate, free, lr, max_iterations=n, patience=opts.patience,
+                                     on_iteration=report, cancelled=cancelled, on_accept=obj.commit, reevaluate=True)
+            else:
+                def accepted(h, report=report):
+                    obj.commit()
+                    report(h)
+                res = minimize(evaluate, free, lr, max_iterations=n, patience=opts.patience,
+                               on_iteration=accepted, cancelled=cancelled)
+            params = {**res.params, **held}
+            it, rej, stopped = it + res.iterations, rej + res.rejected, res.stopped
+            if stopped == "cancelled":
+                break
+        best = params
     rest, bend, bp = obj.unpack(best)
     bv = body_model.pose(bp) if obj.use_body else None
     obj.drape_at(rest, bend, bv)   # the best iterate's equilibrium

@@ -9,6 +9,7 @@ from dataclasses import dataclass, field, fields, replace
 from ..config import load_config
 
 PARAMETRIZATIONS = ("cage", "vertices")
+OPTIMIZERS = ("lbfgs", "adam")
 BENDING = ("garment", "panel", "fixed")
 
 
@@ -17,7 +18,8 @@ class Weights:
     boundary: float = 1.0
     interior: float = 1.0
     seam: float = 100.0
-    curvature: float = 1.0
+    curvature: float = 0.1
+    body_data: float = 1.0
     body_prior: float = 1e-2
 
 
@@ -34,8 +36,11 @@ class RecoverOptions:
     """See config/diffavatar.yaml `recover:` for every field's meaning and unit."""
     iterations: int = 30
     edge_length: float = 0.04
+    output_edge_length: float = 0.0
     parametrization: str = "cage"
+    optimizer: str = "lbfgs"
     bending: str = "garment"
+    bending_after: int = 0
     optimize_body: bool = True
     weights: Weights = field(default_factory=Weights)
     step_sizes: StepSizes = field(default_factory=StepSizes)
@@ -45,6 +50,7 @@ class RecoverOptions:
     drape_iterations: int = 40
     residual_tol: float = 1e-7
     max_seam_mismatch_pct: float = 5.0
+    body_trim_distance: float = 0.05
     patience: int = 5
     # per run
     garment_type: str | None = None
@@ -58,18 +64,24 @@ class RecoverOptions:
     def __post_init__(self):
         def bad(name, why):
             raise ValueError(f"recover options: {name} {why}, got {getattr(self, name)!r}")
-        for name in ("iterations", "samples", "drape_steps", "drape_iterations", "patience"):
+        for name in ("iterations", "samples", "drape_steps", "drape_iterations", "patience", "bending_after"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < 0:
                 bad(name, "must be a non-negative integer")
-        for name in ("edge_length", "bend_stiffness", "residual_tol", "max_seam_mismatch_pct"):
+        for name in ("edge_length", "bend_stiffness", "residual_tol", "max_seam_mismatch_pct",
+                     "body_trim_distance"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
                 bad(name, "must be a positive number")
         if not 0.005 <= self.edge_length <= 0.2:
             bad("edge_length", "must lie in [0.005, 0.2] m")
+        o = self.output_edge_length
+        if isinstance(o, bool) or not isinstance(o, (int, float)) or not (o == 0 or 0.005 <= o <= 0.2):
+            bad("output_edge_length", "must be 0 (off) or lie in [0.005, 0.2] m")
         if self.parametrization not in PARAMETRIZATIONS:
             bad("parametrization", f"must be one of {PARAMETRIZATIONS}")
+        if self.optimizer not in OPTIMIZERS:
+            bad("optimizer", f"must be one of {OPTIMIZERS}")
         if self.bending not in BENDING:
             bad("bending", f"must be one of {BENDING}")
         if self.units not in ("m", "cm", "mm"):

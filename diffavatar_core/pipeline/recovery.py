@@ -15,6 +15,7 @@ Stages (each reported through `progress` and checked for cancellation):
 from __future__ import annotations
 
 import time
+from functools import partial
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -33,9 +34,10 @@ from ..sim.cloth import Cloth
 from ..sim.material import ClothMaterial
 from .coopt import co_optimize, seam_mismatch_pct
 from .options import RecoverOptions
+from .refine import push_outside, transfer_pattern, transfer_positions
 from .result import BodyAssets, MaterialAssets, RecoveryResult
 
-STAGES = ("preprocess", "body", "drape", "optimize", "metrics")
+STAGES = ("preprocess", "body", "drape", "optimize", "refine", "metrics")
 # garment class → built-in template when the type names a class or a synonym (config/labels.yaml)
 CLASS_TEMPLATE = {"upper": "tshirt", "dress": "dress", "skirt": "skirt", "pants": "pants"}
 MIN_BODY_FRACTION = 0.2    # of the scan's vertices, for a body fit to the body-labelled points
@@ -84,19 +86,34 @@ def select_template(scan: ScanData, opts: RecoverOptions) -> str:
     return name
 
 
-def _load_template_file(path, edge: float, body_vertices: np.ndarray) -> Garment:
+def _load_template_file(path, edge_length: float, body_vertices: np.ndarray) -> Garment:
     """An OBJ-with-UV or GarmentCode JSON template, its 3D layout moved horizontally onto the
     body's vertical axis (the layout's own height is kept: files are assumed in a Y-up frame
     with the floor at 0, like the core's)."""
     from ..pattern.garmentcode import load_garmentcode
     from ..pattern.obj_import import load_obj_pattern
     p = str(path)
-    g = load_garmentcode(p, edge_length=edge) if p.lower().endswith(".json") else load_obj_pattern(p)
+    g = load_garmentcode(p, edge_length=edge_length) if p.lower().endswith(".json") else load_obj_pattern(p)
     lo, hi = body_vertices.min(axis=0), body_vertices.max(axis=0)
     centre = 0.5 * (lo + hi)
     gc = 0.5 * (g.x0.min(axis=0) + g.x0.max(axis=0))
     g.x0 = g.x0 + np.array([centre[0] - gc[0], 0.0, centre[2] - gc[2]])
     return g
+
+
+def _fine_output(g, cage, co, fine: Garment, material, body_vertices, body_faces, opts, cancel):
+    """(fine garment, its rest (V, 2) m, its equilibrium (V, 3) m) for the co-optimization's
+    result: the pattern carried through the cage, warm-started from the coarse drape, Newton to
+    equilibrium. Raises ValueError when no equilibrium is reached."""
+    rest = transfer_pattern(g, cage, co.rest[cage.handles], fine)   # MVC interpolate: ζ = x̄[handles]
+    x0 = transfer_positions(g, co.x, fine)
+    cloth = Cloth(fine.rest, fine.faces, x0, seams=fine.seams, groups=fine.panel[fine.faces[:, 0]],
+                  materials=[material] * len(fine.panels), body=(body_vertices, body_faces))
+    cloth.set_control(rest=rest, bend_stiffness=np.asarray(co.bend_stiffness, float))
+    x0 = push_outside(x0, body_vertices, body_faces, float(cloth.model.thickness))
+    cloth.reequilibrate(x0, opts.residual_tol, refine_iterations=200, max_steps=max(opts.drape_steps, 600),
+                        iterations=opts.drape_iterations, cancel=cancel)
+    return fine, rest, np.array(cloth.x)
 
 
 def _body_assets(model: BodyModel, p) -> BodyAssets:
@@ -148,15 +165,22 @@ def recover(scan, options=None, run_control=None, *, progress=None, cancel=None,
     # template + initial drape ------------------------------------------------------------------
     ctl.report("drape")
     template = opts.template or getattr(scan, "template_name", "") or None   # the node's message may name one
+    lm = model.landmarks(body_params)
+    remake = None   # the same template at another edge length (for the fine output mesh)
     if template and str(template) in TEMPLATES:
         template_name = str(template)
-        g = make_template(template_name, landmarks=model.landmarks(body_params), edge_length=opts.edge_length)
+        remake = partial(make_template, template_name, landmarks=lm)
     elif template:
-        g = _load_template_file(template, opts.edge_length, body_vertices)
         template_name = str(template)
+        if template_name.lower().endswith(".json"):    # GarmentCode: re-triangulated at any edge
+            remake = partial(_load_template_file, template, body_vertices=body_vertices)
+        else:
+            g = _load_template_file(template, opts.edge_length, body_vertices)
     else:
         template_name = select_template(data, opts)
-        g = make_template(template_name, landmarks=model.landmarks(body_params), edge_length=opts.edge_length)
+        remake = partial(make_template, template_name, landmarks=lm)
+    if remake is not None:
+        g = remake(edge_length=opts.edge_length)
     material = ClothMaterial(bend_stiffness=opts.bend_stiffness)
     cloth = Cloth(g.rest, g.faces, g.x0, seams=g.seams, groups=g.panel[g.faces[:, 0]],
                   materials=[material] * len(g.panels), body=(body_vertices, model.faces))
@@ -181,21 +205,43 @@ def recover(scan, options=None, run_control=None, *, progress=None, cancel=None,
 
     co = co_optimize(cloth, g, data.interior_points, data.boundaries, opts, cage=cage, body_model=model,
                      body_params=body_params, on_iteration=on_iteration, cancelled=lambda: ctl.cancelled,
-                     cancel=ctl.token)
+                     cancel=ctl.token, body_points=data.vertices[body_mask] if full else None)
     ctl.check("optimize")
+
+    body_final = co.body_vertices if co.body_vertices is not None else body_vertices
+    warnings = list(data.warnings)
+
+    # output resolution (coarse-to-fine through the cage) ------------------------------------------
+    g_out, rest_out, x_out, handles_out = g, co.rest, co.x, (cage.handles if cage is not None else None)
+    fine_edge = opts.output_edge_length
+    if fine_edge and fine_edge < opts.edge_length:
+        if cage is None or remake is None:
+            warnings.append(f"output_edge_length {fine_edge} m needs the cage parametrization and a built-in or "
+                            f"GarmentCode template; the optimized mesh (edge {opts.edge_length} m) is returned")
+        else:
+            ctl.report("refine")
+            try:
+                g_out, rest_out, x_out = _fine_output(g, cage, co, remake(edge_length=fine_edge), material,
+                                                      body_final, model.faces, opts, ctl.token)
+                handles_out = None
+            except ValueError as exc:   # nothing produced so far is lost: keep the coarse result
+                warnings.append(f"the fine output mesh (edge {fine_edge} m) did not reach equilibrium ({exc}); "
+                                f"the optimized mesh (edge {opts.edge_length} m) is returned")
 
     # result ------------------------------------------------------------------------------------
     ctl.report("metrics")
-    g_final = Garment(co.rest, g.faces, co.x, g.seams, g.panel, g.panels, g.boundaries, name=g.name)
-    body_final = co.body_vertices if co.body_vertices is not None else body_vertices
-    q = mesh_quality(co.x, g.faces)
+    g_final = Garment(rest_out, g_out.faces, x_out, g_out.seams, g_out.panel, g_out.panels, g_out.boundaries,
+                      name=g_out.name)
+    q = mesh_quality(x_out, g_out.faces)
     metrics = {
         "chamfer_initial_cm": chamfer_initial,
-        "chamfer_final_cm": cm * chamfer_meshes(co.x, g.faces, Vg_scan, Fg_scan, samples=nsamp, cancel=ctl.token),
+        "chamfer_final_cm": cm * chamfer_meshes(x_out, g_out.faces, Vg_scan, Fg_scan, samples=nsamp,
+                                                cancel=ctl.token),
         "mesh_quality_min": q.min, "mesh_quality_avg": q.mean,
-        "seam_length_mismatch_max_pct": seam_mismatch_pct(g, co.rest),
+        "seam_length_mismatch_max_pct": seam_mismatch_pct(g_out, rest_out),
         "pattern_area_m2": g_final.total_area(), "template_area_m2": g.total_area(),
         "stopped": co.stopped, "rejected_iterations": co.rejected,
+        "optimized_vertices": int(len(g.rest)), "output_vertices": int(len(rest_out)),
     }
     bend = np.asarray(co.bend_stiffness, float)
     mat = MaterialAssets(bending_stiffness=float(np.exp(np.mean(np.log(bend)))),
@@ -205,14 +251,14 @@ def recover(scan, options=None, run_control=None, *, progress=None, cancel=None,
                          thickness=float(cloth.model.thickness))
     result = RecoveryResult(
         garment_type=data.garment_type or data.garment_class, template_name=template_name,
-        pattern=pattern_assets(g_final, cage.handles if cage is not None else None), material=mat,
-        body=_body_assets(model, co.body_params), garment_vertices=co.x, garment_faces=g.faces.astype(np.int64),
-        garment_uv=co.rest.copy(), body_vertices=body_final, body_faces=np.asarray(model.faces, np.int64),
+        pattern=pattern_assets(g_final, handles_out), material=mat,
+        body=_body_assets(model, co.body_params), garment_vertices=x_out, garment_faces=g_out.faces.astype(np.int64),
+        garment_uv=rest_out.copy(), body_vertices=body_final, body_faces=np.asarray(model.faces, np.int64),
         metrics=metrics, iterations=co.iterations, wall_s=time.perf_counter() - t0,
         loss_history=[{"iteration": h["iteration"], "value": h["value"], "terms": h["terms"]} for h in co.history])
     result.garment = g_final
     result.body_params = co.body_params
-    result.warnings = list(data.warnings)
+    result.warnings = warnings
     result.scan_mesh = (data.vertices, data.faces)
     return result
 

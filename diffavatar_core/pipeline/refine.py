@@ -1,0 +1,62 @@
+"""Coarse-to-fine output: the co-optimization runs on a coarse triangulation (its cost grows
+superlinearly with the mesh), and the recovered pattern is carried to a production-resolution
+mesh of the same template through the control cage — x̄ = W ζ (paper Eq. 5) is a deformation of
+the pattern plane, so the fine mesh's vertices take the mean value coordinates of the *same*
+cage (at the template's handle positions ζ₀) and the recovered handles ζ. Linear precision of
+MVC makes this exact at ζ = ζ₀ (the fine template maps to itself). The fine drape is warm-
+started from the coarse equilibrium (each fine vertex at the coarse draped position of its
+pattern location) and re-equilibrated by Newton. Lengths in m."""
+from __future__ import annotations
+
+import numpy as np
+
+from .. import _core
+from ..pattern.cage import ControlCage, mean_value_coordinates
+from ..pattern.garment import Garment
+
+
+def transfer_pattern(coarse: Garment, cage: ControlCage, zeta, fine: Garment) -> np.ndarray:
+    """The fine template's rest coordinates (V_f, 2) m under the recovered handles ζ (H, 2) m of
+    the coarse template's cage. coarse and fine: the same template at two edge lengths (same
+    panels, in the same order and pattern-plane layout)."""
+    if len(coarse.panels) != len(fine.panels):
+        raise ValueError(f"fine template has {len(fine.panels)} panels, the coarse one {len(coarse.panels)}")
+    zeta = np.asarray(zeta, np.float64).reshape(-1, 2)
+    out = np.empty_like(fine.rest)
+    start = fine.panel_vertex_start
+    for p in range(len(fine.panels)):
+        sel = np.flatnonzero(cage.handle_panel == p)
+        verts = np.arange(start[p], start[p + 1])
+        W = mean_value_coordinates(cage.zeta0[sel], fine.rest[verts])
+        out[verts] = W @ zeta[sel]
+    return out
+
+
+def transfer_positions(coarse: Garment, x_coarse, fine: Garment) -> np.ndarray:
+    """(V_f, 3) m: every fine vertex at the coarse drape's position of its template pattern
+    location (barycentric in the coarse panel's triangle closest to it in the pattern plane)."""
+    x_coarse = np.asarray(x_coarse, np.float64)
+    lift = 10.0 * (1.0 + np.ptp(coarse.rest, axis=0).max())   # panels apart in a third coordinate
+    Pc = np.column_stack([coarse.rest, lift * coarse.panel])
+    Pf = np.column_stack([fine.rest, lift * fine.panel])
+    tri, bary, _ = _core.closest_points_on_mesh(np.ascontiguousarray(Pc), coarse.faces, np.ascontiguousarray(Pf))
+    tri, bary = np.asarray(tri), np.asarray(bary)
+    return np.einsum("nk,nkd->nd", bary, x_coarse[coarse.faces[tri]])
+
+
+def push_outside(x, body_vertices, body_faces, thickness: float) -> np.ndarray:
+    """x (V, 3) m with every vertex closer to the body than `thickness` (m) — or inside it, signed
+    by the closest face's normal — moved to the closest body point + thickness along that normal.
+    The coarse drape's chords cut through the body's curvature by millimetres, and Newton from a
+    deeply penetrating start does not converge."""
+    x = np.array(x, np.float64)
+    bv = np.ascontiguousarray(body_vertices, np.float64)
+    bf = np.ascontiguousarray(body_faces, np.int32)
+    tri, _, cp = _core.closest_points_on_mesh(bv, bf, x)
+    cp = np.asarray(cp)
+    T = bv[bf[np.asarray(tri)]]
+    n = np.cross(T[:, 1] - T[:, 0], T[:, 2] - T[:, 0])
+    n /= np.maximum(np.linalg.norm(n, axis=1), 1e-300)[:, None]
+    near = ((x - cp) * n).sum(1) < thickness
+    x[near] = cp[near] + thickness * n[near]
+    return x
