@@ -5,7 +5,10 @@ simulated garment's vertex positions X (#V×3, m):
   points (C++ `chamfer_loss`);
 - boundary: for each garment boundary loop matched to a scan boundary loop (by name: 'hem',
   'neckline', 'sleeve_left', ...), a symmetric squared curve-to-curve Chamfer distance between the
-  two closed polylines — it pulls hem heights and sleeve lengths to the scan's.
+  two closed polylines — it pulls hem heights and sleeve lengths to the scan's;
+- boundary length: per matched loop, the squared difference of the garment loop's 3D perimeter
+  and the scan loop's — "the boundary loss ... serves to drive correct lengths of the pattern"
+  (§4.2.5): a curve-to-curve distance alone lets a too-long hem hide its excess in folds.
 
 Squared distances are in m²; the reported Chamfer *metric* is separate (metrics.py, in cm)."""
 from __future__ import annotations
@@ -115,6 +118,58 @@ def boundary_loss(X, garment_loops: dict, scan_loops: dict) -> BoundaryLoss:
         np.add.at(grad, idx[seg], (1 - t)[:, None] * r_s / len(S))
         np.add.at(grad, idx[(seg + 1) % len(idx)], t[:, None] * r_s / len(S))
     return BoundaryLoss(float(sum(per_loop.values())), per_loop, grad)
+
+
+def polyline_length(P: np.ndarray, spacing: float = 0.0) -> float:
+    """Perimeter (m) of the closed polyline P (K×3, m). spacing > 0: measured through the points
+    nearest to every `spacing` m of arc length, so that the scan's noise (which lengthens a finely
+    sampled noisy curve by about σ²/l² relative) is measured at the garment mesh's own scale."""
+    P = val.points("P", P)
+    if len(P) < 3:
+        raise ValueError("polyline_length: needs ≥ 3 points")
+    seg = np.linalg.norm(np.roll(P, -1, axis=0) - P, axis=1)
+    total = float(seg.sum())
+    if spacing <= 0 or total < 3 * spacing:
+        return total
+    s = np.concatenate([[0.0], np.cumsum(seg)[:-1]])
+    keep = np.unique(np.searchsorted(s, np.arange(0.0, total, total / round(total / spacing))).clip(0, len(P) - 1))
+    Q = P[keep]
+    return float(np.linalg.norm(np.roll(Q, -1, axis=0) - Q, axis=1).sum())
+
+
+@dataclass(frozen=True)
+class BoundaryLengthLoss:
+    value: float       # Σ_loops ½ (L_garment − L_scan)², m²
+    per_loop: dict     # name → ½ (L_garment − L_scan)²
+    lengths: dict      # name → (L_garment, L_scan), m
+    grad: np.ndarray   # dL/dX, #V×3
+
+
+def boundary_length_loss(X, garment_loops: dict, scan_lengths: dict) -> BoundaryLengthLoss:
+    """Σ over loops present on both sides of ½ (L_g − L_s)², L_g the perimeter of the closed
+    garment loop X[idx] (m), L_s the scan loop's (m, e.g. polyline_length of it). Exact gradient:
+    dL_g/dx_a = Σ over the loop edges (a, b) at a of (x_a − x_b)/|x_a − x_b|."""
+    X = val.points("X", X)
+    grad = np.zeros_like(X)
+    per_loop, lengths = {}, {}
+    for name in sorted(set(garment_loops) & set(scan_lengths)):
+        idx = np.asarray(garment_loops[name], dtype=np.int64)
+        if idx.ndim != 1 or len(idx) < 3 or idx.min() < 0 or idx.max() >= len(X):
+            raise ValueError(f"garment_loops[{name!r}]: needs ≥ 3 valid vertex indices")
+        Ls = float(scan_lengths[name])
+        if not np.isfinite(Ls) or Ls <= 0:
+            raise ValueError(f"scan_lengths[{name!r}]: needs a positive finite length (m), got {Ls}")
+        E = X[np.roll(idx, -1)] - X[idx]
+        le = np.linalg.norm(E, axis=1)
+        if le.min() <= 0:
+            raise ValueError(f"garment loop {name!r} has a zero-length edge")
+        Lg = float(le.sum())
+        r = Lg - Ls
+        per_loop[name], lengths[name] = 0.5 * r * r, (Lg, Ls)
+        U = r * E / le[:, None]
+        np.add.at(grad, idx, -U)
+        np.add.at(grad, np.roll(idx, -1), U)
+    return BoundaryLengthLoss(float(sum(per_loop.values())), per_loop, lengths, grad)
 
 
 @dataclass(frozen=True)

@@ -21,7 +21,7 @@ import numpy as np
 
 from ..adjoint import equilibrium_gradient
 from ..body.params import BodyParams
-from ..loss import body_data_loss, boundary_loss, garment_samples, interior_loss
+from ..loss import body_data_loss, boundary_length_loss, boundary_loss, garment_samples, interior_loss, polyline_length
 from ..lbfgs import minimize_lbfgs
 from ..optim import minimize
 from ..pattern.regularizers import CurvatureRegularizer, SeamLengthRegularizer
@@ -68,6 +68,8 @@ class CoOptObjective:
         self.scan_points = np.asarray(scan_points, np.float64)
         self.scan_loops = scan_loops
         self.loops = {k: v for k, v in garment.boundaries.items() if k in scan_loops}
+        # scan opening perimeters (m), measured at the co-optimization mesh's edge length
+        self.scan_lengths = {k: polyline_length(scan_loops[k], opts.edge_length) for k in self.loops}
         self.c0 = cloth.control
         self.ngroups = len(np.asarray(self.c0.bend_stiffness))
         self.seam_reg = SeamLengthRegularizer(garment)
@@ -137,13 +139,17 @@ class CoOptObjective:
         x = np.array(self.cloth.x)
         li = interior_loss(x, self.faces, self.samples, self.scan_points)
         lb = boundary_loss(x, self.loops, self.scan_loops) if self.loops else None
+        ll = boundary_length_loss(x, self.loops, self.scan_lengths) if self.loops else None
         ls, gs = self.seam_reg.value_and_grad(rest)
         lc, gc = self.curv_reg.value_and_grad(rest)
-        dphi_dx = w.interior * li.grad + (w.boundary * lb.grad if lb is not None else 0.0)
+        dphi_dx = w.interior * li.grad + (w.boundary * lb.grad + w.boundary_length * ll.grad if lb is not None else 0.0)
         ga = equilibrium_gradient(self.cloth, dphi_dx, cancel=self.cancel)
         g_rest = ga["rest"] + w.seam * gs + w.curvature * gc
-        terms = {"boundary": lb.value if lb is not None else 0.0, "interior": li.value, "seam": ls, "curvature": lc}
-        value = w.boundary * terms["boundary"] + w.interior * li.value + w.seam * ls + w.curvature * lc
+        terms = {"boundary": lb.value if lb is not None else 0.0,
+                 "boundary_length": ll.value if ll is not None else 0.0,
+                 "interior": li.value, "seam": ls, "curvature": lc}
+        value = (w.boundary * terms["boundary"] + w.boundary_length * terms["boundary_length"]
+                 + w.interior * li.value + w.seam * ls + w.curvature * lc)
         grads = {"handles": (self.cage.grad_zeta(g_rest) if self.cage is not None else g_rest).reshape(-1)}
         if o.bending != "fixed":
             gb = np.asarray(ga["bend_stiffness"]) * bend * np.log(10.0)

@@ -16,6 +16,7 @@ BENDING = ("garment", "panel", "fixed")
 @dataclass(frozen=True)
 class Weights:
     boundary: float = 1.0
+    boundary_length: float = 1.0
     interior: float = 1.0
     seam: float = 100.0
     curvature: float = 0.1
