@@ -60,13 +60,15 @@ class Cloth:
     initial 3D positions; seams (S,2) vertex pairs sewn together; pinned: vertex indices held
     fixed; groups (F,) material group per triangle (e.g. per panel) with one ClothMaterial per
     group (density from the first); body: (vertices (Vb,3), faces (Fb,3)) collider or None;
-    thickness h (m), contact stiffness (N/m), seam compliance (m/N).
+    thickness h (m), contact stiffness (N/m), seam compliance (m/N); grain (F,) the fabric's
+    warp direction per triangle, rad counter-clockwise from the pattern x axis (None: 0, warp =
+    pattern x, weft = pattern y; a Garment's is Garment.face_grain()).
     """
 
     def __init__(self, rest, faces, x0, seams=None, pinned=None, groups=None,
                  materials: ClothMaterial | list[ClothMaterial] | None = None, body=None,
                  thickness: float = 0.004, contact_stiffness: float = 2.0e3,
-                 seam_compliance: float = 1.0e-5):
+                 seam_compliance: float = 1.0e-5, grain=None):
         rest = _validate.points("rest", rest, dims=2)
         F = _validate.faces("faces", faces, len(rest))
         x0 = _validate.points("x0", x0)
@@ -82,6 +84,11 @@ class Cloth:
         groups = np.zeros(len(F), np.int32) if groups is None else np.asarray(groups, dtype=np.int32)
         if groups.shape != (len(F),) or (len(groups) and groups.min() < 0):
             raise ValueError(f"groups: expected ({len(F)},) non-negative ints, got shape {groups.shape}")
+        if grain is None:
+            grain = np.zeros(len(F))
+        grain = np.asarray(grain, dtype=np.float64)
+        if grain.shape != (len(F),) or not np.all(np.isfinite(grain)):
+            raise ValueError(f"grain: expected ({len(F)},) finite angles (rad), got shape {grain.shape}")
         ng = int(groups.max()) + 1 if len(groups) else 1
         if materials is None:
             materials = ClothMaterial()
@@ -96,7 +103,7 @@ class Cloth:
         self.materials = list(materials)
         model = _core.build_cloth_model(len(rest), F, rest, groups, seams, pinned, bF,
                                         materials[0].density, float(thickness),
-                                        float(contact_stiffness), float(seam_compliance))
+                                        float(contact_stiffness), float(seam_compliance), grain)
         control = _core.ClothControl(rest, np.array([m.compliance for m in materials]),
                                      np.array([m.bend_stiffness for m in materials]), bV)
         self.solver = _core.XpbdSolver(model, control)
