@@ -2,6 +2,7 @@
 pattern, material, body vertices) and State (x, v) kept apart, over the C++ XpbdSolver."""
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -197,8 +198,23 @@ class Cloth:
         d.refine_iterations = int(refine_iterations)
         d.anchor_stiffness = float(anchor_stiffness)
         r = self.solver.drape(self.state, p, d, progress, cancel)
-        res = DrapeResult(r.converged, r.settled, r.diverged, r.steps, r.refine_iterations, r.max_speed,
-                          r.residual, r.max_penetration, r.wall_s, r.message)
+        t0 = time.perf_counter()
+        converged, residual, its, pen, msg = r.converged, r.residual, r.refine_iterations, r.max_penetration, r.message
+        # Newton holds the contact set of the settled state fixed, so a vertex that was not in
+        # contact can end inside the body; re-detect the contacts there and refine again (an
+        # active-set iteration; a few rounds at most).
+        for _ in range(3 if refine and converged else 0):
+            if not pen > 0.0:
+                break
+            k, res = self.refine(keep_anchor=True, keep_contacts=False, residual_tol=residual_tol,
+                                 refine_iterations=refine_iterations, anchor_stiffness=anchor_stiffness,
+                                 progress=progress, cancel=cancel)
+            its, residual, pen = its + k, res, self.solver.max_penetration(self.x)
+            converged = res <= residual_tol
+            if not converged:
+                msg = f"Newton refinement after re-detecting contacts stopped at residual {res:.3g}"
+        res = DrapeResult(converged, r.settled, r.diverged, r.steps, its, r.max_speed,
+                          residual, pen, r.wall_s + (time.perf_counter() - t0), msg)
         if res.diverged and raise_on_divergence:
             raise SimulationDiverged(res)
         return res
