@@ -5,8 +5,8 @@
 #include "autodiff/jet.hpp"
 #include "sim/bending_kernel.hpp"
 #include "sim/contact_kernel.hpp"
-#include "sim/seam_kernel.hpp"
 #include "sim/grain_frame.hpp"
+#include "sim/seam_kernel.hpp"
 #include "sim/stretch_kernel.hpp"
 
 namespace diffavatar {
