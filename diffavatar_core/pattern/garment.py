@@ -76,6 +76,14 @@ class Garment:
         """(P+1,) int64: panel p owns vertices [start[p], start[p+1])."""
         return np.searchsorted(self.panel, np.arange(len(self.panels) + 1)).astype(np.int64)
 
+    def face_grain(self) -> np.ndarray:
+        """(F,) float64: each face's fabric grain (warp direction, rad from the pattern x axis)
+        from its panel, for Cloth(grain=...). The PanelInfo default π/2 puts the warp along the
+        pattern y axis (the panel's length); with equal warp/weft compliances that is the same
+        energy as grain 0 (a quarter turn only swaps ε00 and ε11 and negates ε01)."""
+        p = self.panel[self.faces[:, 0]] if len(self.faces) else np.zeros(0, np.int64)
+        return np.array([self.panels[i].grain for i in p], dtype=np.float64)
+
     @property
     def panel_names(self) -> list:
         return [p.name for p in self.panels]

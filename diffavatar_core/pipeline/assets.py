@@ -30,7 +30,7 @@ class RecoveredAssets:
         """The garment as a Cloth on the recovered body, in its recovered drape."""
         g = self.garment
         return Cloth(g.rest, g.faces, g.x0, seams=g.seams, groups=g.panel[g.faces[:, 0]], materials=self.materials,
-                     body=(self.body_model.pose(self.body_params), self.body_model.faces), thickness=self.thickness)
+                     body=(self.body_model.pose(self.body_params), self.body_model.faces), thickness=self.thickness, grain=g.face_grain())
 
 
 def load_result(result_dir, body_model: BodyModel | None = None) -> RecoveredAssets:

@@ -108,7 +108,7 @@ def _fine_output(g, cage, co, fine: Garment, material, body_vertices, body_faces
     rest = transfer_pattern(g, cage, co.rest[cage.handles], fine)   # MVC interpolate: ζ = x̄[handles]
     x0 = transfer_positions(g, co.x, fine)
     cloth = Cloth(fine.rest, fine.faces, x0, seams=fine.seams, groups=fine.panel[fine.faces[:, 0]],
-                  materials=[material] * len(fine.panels), body=(body_vertices, body_faces))
+                  materials=[material] * len(fine.panels), body=(body_vertices, body_faces), grain=fine.face_grain())
     cloth.set_control(rest=rest, bend_stiffness=np.asarray(co.bend_stiffness, float))
     x0 = push_outside(x0, body_vertices, body_faces, float(cloth.model.thickness))
     cloth.reequilibrate(x0, opts.residual_tol, refine_iterations=200, max_steps=max(opts.drape_steps, 600),
@@ -183,7 +183,7 @@ def recover(scan, options=None, run_control=None, *, progress=None, cancel=None,
         g = remake(edge_length=opts.edge_length)
     material = ClothMaterial(bend_stiffness=opts.bend_stiffness)
     cloth = Cloth(g.rest, g.faces, g.x0, seams=g.seams, groups=g.panel[g.faces[:, 0]],
-                  materials=[material] * len(g.panels), body=(body_vertices, model.faces))
+                  materials=[material] * len(g.panels), body=(body_vertices, model.faces), grain=g.face_grain())
     cloth.sew(cancel=ctl.token)
     r = cloth.drape(max_steps=max(opts.drape_steps, 1), iterations=opts.drape_iterations,
                     residual_tol=opts.residual_tol, refine_iterations=120, raise_on_divergence=False,

@@ -85,7 +85,7 @@ def drape_truth(g: Garment, body, bend_stiffness: float, max_steps: int = 600, c
     """The ground-truth drape of garment g on body (V, F): (Cloth, DrapeResult)."""
     mat = ClothMaterial(bend_stiffness=bend_stiffness)
     cloth = Cloth(g.rest, g.faces, g.x0, seams=g.seams, groups=g.panel[g.faces[:, 0]],
-                  materials=[mat] * len(g.panels), body=body)
+                  materials=[mat] * len(g.panels), body=body, grain=g.face_grain())
     cloth.sew(cancel=cancel)
     r = cloth.drape(max_steps=max_steps, iterations=40, residual_tol=1e-7, refine_iterations=120, raise_on_divergence=False,
                     cancel=cancel)

@@ -2,6 +2,7 @@
 pattern, material, body vertices) and State (x, v) kept apart, over the C++ XpbdSolver."""
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -60,13 +61,15 @@ class Cloth:
     initial 3D positions; seams (S,2) vertex pairs sewn together; pinned: vertex indices held
     fixed; groups (F,) material group per triangle (e.g. per panel) with one ClothMaterial per
     group (density from the first); body: (vertices (Vb,3), faces (Fb,3)) collider or None;
-    thickness h (m), contact stiffness (N/m), seam compliance (m/N).
+    thickness h (m), contact stiffness (N/m), seam compliance (m/N); grain (F,) the fabric's
+    warp direction per triangle, rad counter-clockwise from the pattern x axis (None: 0, warp =
+    pattern x, weft = pattern y; a Garment's is Garment.face_grain()).
     """
 
     def __init__(self, rest, faces, x0, seams=None, pinned=None, groups=None,
                  materials: ClothMaterial | list[ClothMaterial] | None = None, body=None,
                  thickness: float = 0.004, contact_stiffness: float = 2.0e3,
-                 seam_compliance: float = 1.0e-5):
+                 seam_compliance: float = 1.0e-5, grain=None):
         rest = _validate.points("rest", rest, dims=2)
         F = _validate.faces("faces", faces, len(rest))
         x0 = _validate.points("x0", x0)
@@ -82,6 +85,11 @@ class Cloth:
         groups = np.zeros(len(F), np.int32) if groups is None else np.asarray(groups, dtype=np.int32)
         if groups.shape != (len(F),) or (len(groups) and groups.min() < 0):
             raise ValueError(f"groups: expected ({len(F)},) non-negative ints, got shape {groups.shape}")
+        if grain is None:
+            grain = np.zeros(len(F))
+        grain = np.asarray(grain, dtype=np.float64)
+        if grain.shape != (len(F),) or not np.all(np.isfinite(grain)):
+            raise ValueError(f"grain: expected ({len(F)},) finite angles (rad), got shape {grain.shape}")
         ng = int(groups.max()) + 1 if len(groups) else 1
         if materials is None:
             materials = ClothMaterial()
@@ -96,7 +104,7 @@ class Cloth:
         self.materials = list(materials)
         model = _core.build_cloth_model(len(rest), F, rest, groups, seams, pinned, bF,
                                         materials[0].density, float(thickness),
-                                        float(contact_stiffness), float(seam_compliance))
+                                        float(contact_stiffness), float(seam_compliance), grain)
         control = _core.ClothControl(rest, np.array([m.compliance for m in materials]),
                                      np.array([m.bend_stiffness for m in materials]), bV)
         self.solver = _core.XpbdSolver(model, control)
@@ -190,8 +198,23 @@ class Cloth:
         d.refine_iterations = int(refine_iterations)
         d.anchor_stiffness = float(anchor_stiffness)
         r = self.solver.drape(self.state, p, d, progress, cancel)
-        res = DrapeResult(r.converged, r.settled, r.diverged, r.steps, r.refine_iterations, r.max_speed,
-                          r.residual, r.max_penetration, r.wall_s, r.message)
+        t0 = time.perf_counter()
+        converged, residual, its, pen, msg = r.converged, r.residual, r.refine_iterations, r.max_penetration, r.message
+        # Newton holds the contact set of the settled state fixed, so a vertex that was not in
+        # contact can end inside the body; re-detect the contacts there and refine again (an
+        # active-set iteration; a few rounds at most).
+        for _ in range(3 if refine and converged else 0):
+            if not pen > 0.0:
+                break
+            k, res = self.refine(keep_anchor=True, keep_contacts=False, residual_tol=residual_tol,
+                                 refine_iterations=refine_iterations, anchor_stiffness=anchor_stiffness,
+                                 progress=progress, cancel=cancel)
+            its, residual, pen = its + k, res, self.solver.max_penetration(self.x)
+            converged = res <= residual_tol
+            if not converged:
+                msg = f"Newton refinement after re-detecting contacts stopped at residual {res:.3g}"
+        res = DrapeResult(converged, r.settled, r.diverged, r.steps, its, r.max_speed,
+                          residual, pen, r.wall_s + (time.perf_counter() - t0), msg)
         if res.diverged and raise_on_divergence:
             raise SimulationDiverged(res)
         return res

@@ -39,9 +39,9 @@ def build(garment: str = "tshirt", material: ClothMaterial | None = None, edge: 
         body = (model.pose(params), model.faces)
         t = make_template(garment, landmarks=model.landmarks(params), edge_length=edge)
         g = dict(rest=t.rest, faces=t.faces, x0=t.x0, seams=t.seams, groups=t.panel[t.faces[:, 0]],
-                 boundaries=dict(t.boundaries))
+                 boundaries=dict(t.boundaries), grain=t.face_grain())
     cloth = Cloth(g["rest"], g["faces"], g["x0"], seams=g["seams"], groups=g["groups"],
-                  materials=[mat] * (int(g["groups"].max()) + 1), body=body)
+                  materials=[mat] * (int(g["groups"].max()) + 1), body=body, grain=g.get("grain"))
     return cloth, g, body
 
 

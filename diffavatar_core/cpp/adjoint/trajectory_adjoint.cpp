@@ -8,6 +8,7 @@
 #include "autodiff/jet.hpp"
 #include "sim/bending_kernel.hpp"
 #include "sim/contact_kernel.hpp"
+#include "sim/grain_frame.hpp"
 #include "sim/stretch_kernel.hpp"
 
 namespace diffavatar {
@@ -94,7 +95,7 @@ T contact_cg(const V3<T>& p, const V3<T>& b0, const V3<T>& b1, const V3<T>& b2, 
 /// Derivatives of the rest-shape quantities w.r.t. the rest coordinates u; constant during one
 /// adjoint call (the control is fixed), so computed once instead of once per projection.
 struct RestDerivs {
-  std::vector<Eigen::Matrix<double, 4, 6>> dB;  // ∂(B00, B01, B10, B11)/∂(u0, u1, u2) per triangle
+  std::vector<Eigen::Matrix<double, 4, 6>> dB;  // ∂(B00, B01, B10, B11)/∂(u0, u1, u2) per triangle, B in the grain frame
   std::vector<Eigen::Matrix<double, 6, 1>> dA;  // ∂Ā/∂u per triangle
   std::vector<Eigen::Matrix<double, 8, 1>> dw;  // ∂w/∂u per hinge
   VecXd w;                                      // hinge weight (as from hinge_weight)
@@ -106,12 +107,13 @@ struct RestDerivs {
     dB.resize(nf);
     dA.resize(nf);
     for (int t = 0; t < nf; ++t) {
-      Dual<6> u[3][2], B[4];
+      Dual<6> u[3][2], ug[3][2], B[4];
       for (int k = 0; k < 3; ++k)
         for (int d = 0; d < 2; ++d) u[k][d] = Dual<6>::var(rest(m.faces(t, k), d), 2 * k + d);
-      rest_inverse(u, B);
+      to_grain_frame(m.tri_frame[t], u, ug);  // B is formed in the grain frame (cloth_control.cpp)
+      rest_inverse(ug, B);
       for (int q = 0; q < 4; ++q) dB[t].row(q) = B[q].g.transpose();
-      dA[t] = rest_area(u).g;
+      dA[t] = rest_area(ug).g;
     }
     dw.resize(nh);
     w.resize(nh);

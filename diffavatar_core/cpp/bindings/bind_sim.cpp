@@ -19,6 +19,7 @@ void bind_sim(py::module_& m) {
       .def_readonly("num_vertices", &ClothModel::num_vertices)
       .def_readonly("faces", &ClothModel::faces)
       .def_readonly("hinges", &ClothModel::hinges)
+      .def_readonly("tri_grain", &ClothModel::tri_grain)
       .def_readonly("seams", &ClothModel::seams)
       .def_readonly("mass", &ClothModel::mass)
       .def_readonly("inv_mass", &ClothModel::inv_mass)
@@ -33,13 +34,14 @@ void bind_sim(py::module_& m) {
   m.def("build_cloth_model",
         [](int nv, const RefX3i& F, const RefX2d& rest, const VecXi& groups, const RefX2i& seams,
            const std::vector<int>& pinned, const RefX3i& body_faces, double density, double thickness,
-           double contact_stiffness, double seam_compliance) {
+           double contact_stiffness, double seam_compliance, const VecXd& tri_grain) {
           return build_cloth_model(nv, F, rest, groups, seams, pinned, body_faces, density, thickness,
-                                   contact_stiffness, seam_compliance);
+                                   contact_stiffness, seam_compliance, tri_grain);
         },
         py::arg("num_vertices"), py::arg("faces"), py::arg("rest"), py::arg("tri_group"), py::arg("seams"),
         py::arg("pinned"), py::arg("body_faces"), py::arg("density"), py::arg("thickness"),
-        py::arg("contact_stiffness"), py::arg("seam_compliance"), py::call_guard<py::gil_scoped_release>());
+        py::arg("contact_stiffness"), py::arg("seam_compliance"), py::arg("tri_grain") = VecXd(),
+        py::call_guard<py::gil_scoped_release>());
 
   py::class_<ClothControl>(m, "ClothControl")
       .def(py::init<>())

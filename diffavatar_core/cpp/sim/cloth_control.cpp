@@ -4,6 +4,7 @@
 #include <string>
 
 #include "sim/bending_kernel.hpp"
+#include "sim/grain_frame.hpp"
 
 namespace diffavatar {
 
@@ -22,7 +23,11 @@ RestCache prepare_control(const ClothModel& m, const ClothControl& c) {
   RestCache rc;
   rc.tri.resize(m.faces.rows());
   for (int t = 0; t < m.faces.rows(); ++t) {
-    rc.tri[t] = stretch_rest(c.rest.row(m.faces(t, 0)), c.rest.row(m.faces(t, 1)), c.rest.row(m.faces(t, 2)));
+    // D̄ in the fabric's grain frame (grain_frame.hpp): strain components are warp/weft/shear.
+    double u[3][2], ug[3][2];
+    for (int k = 0; k < 3; ++k) { u[k][0] = c.rest(m.faces(t, k), 0); u[k][1] = c.rest(m.faces(t, k), 1); }
+    to_grain_frame(m.tri_frame[t], u, ug);
+    rc.tri[t] = stretch_rest(Vec2(ug[0][0], ug[0][1]), Vec2(ug[1][0], ug[1][1]), Vec2(ug[2][0], ug[2][1]));
     if (!(rc.tri[t].area > 0))
       throw std::invalid_argument("control: rest triangle " + std::to_string(t) + " is inverted or degenerate");
   }

@@ -5,6 +5,7 @@
 #include "autodiff/jet.hpp"
 #include "sim/bending_kernel.hpp"
 #include "sim/contact_kernel.hpp"
+#include "sim/grain_frame.hpp"
 #include "sim/seam_kernel.hpp"
 #include "sim/stretch_kernel.hpp"
 
@@ -16,7 +17,7 @@ V3<T> var3(const RowMatX3d& X, int i, int off) {
   return {T::var(X(i, 0), off), T::var(X(i, 1), off + 1), T::var(X(i, 2), off + 2)};
 }
 
-// Triangle: Q_a = ½ Ā ε_a² as jets over z = [x0 x1 x2 (9) | ū0 ū1 ū2 (6 if NZ = 15)];
+// Triangle: Q_a = ½ Ā ε_a² (ε in the grain frame) as jets over z = [x0 x1 x2 (9) | ū0 ū1 ū2 (6 if NZ = 15)];
 // E = Σ_a Q_a / α_a.
 template <int NZ>
 std::array<Jet<NZ>, 3> tri_terms(const EnergyContext& c, const RowMatX3d& x, int t) {
@@ -29,8 +30,10 @@ std::array<Jet<NZ>, 3> tri_terms(const EnergyContext& c, const RowMatX3d& x, int
     for (int d = 0; d < 2; ++d)
       u[k][d] = NZ == 15 ? J::var(c.control.rest(i, d), 9 + 2 * k + d) : J(c.control.rest(i, d));
   }
-  auto e = green_strain(xs, u);
-  J A = rest_area(u);
+  J ug[3][2];  // rest corners in the grain frame (grain_frame.hpp); ∂/∂ū chains through R(−g)
+  to_grain_frame(c.model.tri_frame[t], u, ug);
+  auto e = green_strain(xs, ug);
+  J A = rest_area(ug);
   return {0.5 * A * e[0] * e[0], 0.5 * A * e[1] * e[1], 0.5 * A * e[2] * e[2]};
 }
 
@@ -91,7 +94,9 @@ double total_energy(const EnergyContext& c, const RowMatX3d& x) {
       u[k][1] = c.control.rest(i, 1);
       al[k] = c.control.stretch_compliance(m.tri_group[t], k);
     }
-    E += stretch_energy(xs, u, al);
+    double ug[3][2];
+    to_grain_frame(m.tri_frame[t], u, ug);
+    E += stretch_energy(xs, ug, al);
   }
 #pragma omp parallel for reduction(+ : E) schedule(static) if (m.hinges.rows() >= 512)
   for (int h = 0; h < m.hinges.rows(); ++h) {

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "common/types.hpp"
+#include "sim/grain_frame.hpp"
 
 namespace diffavatar {
 
@@ -16,6 +17,8 @@ struct ClothModel {
   int num_vertices = 0;
   RowMatX3i faces;        // #F×3, counter-clockwise in the pattern plane
   VecXi tri_group;        // #F material group of each triangle
+  VecXd tri_grain;        // #F warp direction (rad from the pattern x axis, CCW); 0 = pattern x
+  std::vector<GrainRotation> tri_frame;  // #F R(−grain) of each triangle (grain_frame.hpp)
   RowMatX4i hinges;       // #H×4 (a, b, c, d): shared edge a→b as in triangle (a, b, c)
   VecXi hinge_group;      // #H material group (that of triangle (a, b, c))
   VecXd hinge_rest_angle; // #H θ0 (rad), 0 = flat
@@ -32,10 +35,12 @@ struct ClothModel {
 };
 
 /// Builds the model: hinges from interior edges, masses from `density` (kg/m²) and the rest
-/// areas of `rest` (m), colouring. Throws std::invalid_argument naming a bad input.
+/// areas of `rest` (m), colouring; `tri_grain` (#F rad, or empty = 0 everywhere) the fabric
+/// grain of each triangle. Throws std::invalid_argument naming a bad input.
 ClothModel build_cloth_model(int num_vertices, const RefX3i& faces, const RefX2d& rest, const VecXi& tri_group,
                              const RefX2i& seams, const std::vector<int>& pinned, const RefX3i& body_faces,
-                             double density, double thickness, double contact_stiffness, double seam_compliance);
+                             double density, double thickness, double contact_stiffness, double seam_compliance,
+                             const VecXd& tri_grain = VecXd());
 
 /// Greedy colouring of constraints given as vertex lists; deterministic (input order).
 std::vector<std::vector<int>> color_constraints(const std::vector<std::vector<int>>& verts, int num_vertices);

@@ -1,7 +1,8 @@
 // Orthotropic StVK stretching/shearing of one triangle as one XPBD constraint block
 // (paper §3.2 Eq. 1–2; supplement Eq. 9): C = [ε00, ε11, ε01] of the Green strain
 // ε = ½(FᵀF − I), F = D D̄⁻¹, D = [x1−x0, x2−x0] (3×2, m), D̄ = [ū1−ū0, ū2−ū0] (2×2, m, the
-// sewing pattern). The pattern's x axis is the warp (grain) direction, y the weft.
+// sewing pattern, expressed in the fabric's grain frame by the caller: grain_frame.hpp). With the
+// rest corners in that frame, component 0 is the warp, 1 the weft, 2 the shear.
 // Energy U = Ā (ε00²/2α_warp + ε11²/2α_weft + ε01²/2α_shear), i.e. ½ Cᵀ α̃⁻¹ C with
 // α̃ = diag(α)/Ā; α in m/N (inverse 2D stiffness), Ā the rest area (m²), U in J.
 #pragma once
