@@ -414,7 +414,7 @@ def _pants_spec(lm: BodyLandmarks, m: PantsMeasurements) -> PatternSpec:
 
 TEMPLATES = {
     "tshirt": "short-sleeve t-shirt, hip length",
-    "polo": "polo shirt: the t-shirt with a stand-up collar band (no placket)",
+    "polo": "polo shirt: the t-shirt with a stand-up collar band and a centre-front placket",
     "longsleeve": "long-sleeve shirt",
     "dress": "short-sleeve dress, knee length, flared",
     "skirt": "A-line skirt, knee length",
@@ -422,28 +422,68 @@ TEMPLATES = {
 }
 
 
-def _polo_spec(lm: BodyLandmarks, m: TopMeasurements, collar_height: float = 0.04) -> PatternSpec:
-    """The t-shirt with a collar band: a rectangle whose lower edge, split at the two neck
-    points, is sewn along the front neckline (right → left) and the back neckline (left →
-    right); its ends meet in a seam at the right neck point; its upper edge is the neckline
+def _split_quadratic(P0, P1, P2, t):
+    """Control points of the quadratic Bézier P0-P1-P2 on [0, t] and on [t, 1] (de Casteljau)."""
+    P0, P1, P2 = (np.asarray(p, float) for p in (P0, P1, P2))
+    A, B = (1 - t) * P0 + t * P1, (1 - t) * P1 + t * P2
+    M = (1 - t) * A + t * B
+    return (P0, A, M), (M, B, P2)
+
+
+def _polo_spec(lm: BodyLandmarks, m: TopMeasurements, collar_height: float = 0.04,
+               placket_width: float = 0.03, placket_length: float = 0.12) -> PatternSpec:
+    """The t-shirt with a collar band and a centre-front placket (m).
+
+    Placket: a notch placket_width wide, reaching placket_length below the neckline, is cut out
+    of the front at the centre of its neckline (the neckline is a quadratic Bézier whose x is
+    linear in t, so it is split exactly at x = ±width/2) and a placket panel of the notch's
+    shape is sewn into it (sides and bottom), placed where the notch was; its top edge is part
+    of the neckline the collar is sewn to.
+    Collar: a band whose lower edge, split where the front neckline, the placket top and the
+    back neckline meet, is sewn along them (right → left along the front, left → right along
+    the back); its ends meet in a seam at the right neck point; its upper edge is the neckline
     opening. Placed as a ring around the neck (radius: neckline length / 2π) whose front centre
-    faces +Z; the placket of a real polo is left out."""
+    faces +Z."""
     spec = _top_spec("polo", lm, m)
     front, back = spec.panels[0], spec.panels[1]
-    a, b = front.edge_length(4), back.edge_length(4)
+    # front: edge 4 (neckline, +x → −x) becomes 4 (to the notch), 5 notch side down, 6 notch
+    # bottom, 7 notch side up, 8 (from the notch on); the front's edges k ≥ 5 move to k + 4
+    V = np.asarray(front.vertices, float)
+    P0, P2, P1 = V[4], V[5], np.asarray(front.curves[4], float).reshape(2)
+    N = P0[0] - P2[0]
+    w, d = placket_width, placket_length
+    t1, t2 = 0.5 - w / (2 * N), 0.5 + w / (2 * N)
+    (a0, a1, _), _ = _split_quadratic(P0, P1, P2, t1)
+    _, (b0, b1, b2) = _split_quadratic(P0, P1, P2, t2)
+    c1 = _split_quadratic(P0, P1, P2, t1)[0][2]
+    yt, yb = c1[1], c1[1] - d
+    front.vertices = np.vstack([V[:5], [[w / 2, yt], [w / 2, yb], [-w / 2, yb], [-w / 2, yt]], V[5:]])
+    front.curves = {(k + 4 if k >= 5 else k): c for k, c in front.curves.items() if k != 4}
+    front.curves[4] = [a1.tolist()]
+    front.curves[8] = [b1.tolist()]
     front.boundary = {0: "hem"}
     back.boundary = {0: "hem"}
+    remap = lambda panel, e: (e + 4 if panel == "front" and e >= 5 else e)
+    spec.seams = [SeamSpec(s.panel_a, remap(s.panel_a, s.edge_a), s.panel_b, remap(s.panel_b, s.edge_b), s.reverse)
+                  for s in spec.seams]
+    Vp = np.array([[-w / 2, yb], [w / 2, yb], [w / 2, yt], [-w / 2, yt]])
+    placket = PanelSpec("placket", Vp, front.placement, grain=front.grain)
+    # collar: lower edge = front right part (edge 8), placket top, front left part (edge 4), back
+    fa, fb = front.edge_length(8), front.edge_length(4)
+    b = back.edge_length(4)
+    a = fa + w + fb
     h = collar_height
-    V = np.array([[0.0, 0.0], [a, 0.0], [a + b, 0.0], [a + b, h], [0.0, h]])
+    Vc = np.array([[0.0, 0.0], [fa, 0.0], [fa + w, 0.0], [a, 0.0], [a + b, 0.0], [a + b, h], [0.0, h]])
     R = (a + b) / (2 * np.pi)
     nb = lm.neck_base
     place = Placement([nb[0], nb[1] + 0.01, nb[2] + R], [1, 0, 0], [0, 1, 0], u0=a / 2, v0=0.0, radius=R)
-    collar = PanelSpec("collar", V, place, boundary={3: "neckline"}, grain=0.0)
-    spec.panels.append(collar)
-    # collar edge 0 runs right → left along the front neckline (front edge 4 runs left → right),
-    # edge 1 left → right along the back one (back edge 4 runs right → left, seen from behind)
-    spec.seams += [SeamSpec("collar", 0, "front", 4), SeamSpec("collar", 1, "back", 4),
-                   SeamSpec("collar", 2, "collar", 4)]
+    collar = PanelSpec("collar", Vc, place, boundary={5: "neckline"}, grain=0.0)
+    spec.panels += [placket, collar]
+    spec.seams += [SeamSpec("placket", 0, "front", 6), SeamSpec("placket", 1, "front", 5),
+                   SeamSpec("placket", 3, "front", 7),
+                   SeamSpec("collar", 0, "front", 8), SeamSpec("collar", 1, "placket", 2),
+                   SeamSpec("collar", 2, "front", 4), SeamSpec("collar", 3, "back", 4),
+                   SeamSpec("collar", 4, "collar", 6)]
     return spec
 
 

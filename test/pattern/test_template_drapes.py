@@ -27,6 +27,13 @@ def test_template_drapes_on_the_default_body(garment, tmp_path):
         assert collar[:, 1].min() > lm.neck_base[1]
         r = np.hypot(collar[:, 0] - lm.neck_base[0], collar[:, 2] - lm.neck_base[2])
         assert r.max() < 0.12
+        # the placket lies on the centre front, below the collar and in front of the chest
+        from diffavatar_core.pattern.templates import make_template
+        k = [p.name for p in make_template("polo", edge_length=0.04).panels].index("placket")
+        c = x[np.unique(g["faces"][g["groups"] == k])].mean(0)
+        assert abs(c[0] - lm.neck_base[0]) < 0.02
+        assert c[2] > lm.chest_center[2]
+        assert lm.neck_base[1] - 0.2 < c[1] < lm.neck_base[1]
     if garment in ("longsleeve", "dress", "polo"):
         # hangs on the shoulders; the sleeves stay around the arms
         assert x[:, 1].max() > 0.75 * top

@@ -118,3 +118,27 @@ def test_pants_pattern_and_placement():
     spec = template_spec("pants")
     waist = sum(p.edge_length(k) for p in spec.panels for k, nm in p.boundary.items() if nm == "waist")
     assert LM.waist_girth < waist < LM.hip_girth
+
+
+def test_polo_placket_fills_the_notch_cut_for_it():
+    """The placket is a 3 cm × 12 cm rectangle; front + placket cover the un-notched front of
+    the same measurements (the t-shirt's front with the polo's neckline) — up to the chords of
+    the sampled neckline — and the placket is sewn on three sides with equal vertex counts."""
+    def panel_area(g, name):
+        k = [p.name for p in g.panels].index(name)
+        F = g.faces[g.panel[g.faces[:, 0]] == k]
+        a, b, c = g.rest[F[:, 0]], g.rest[F[:, 1]], g.rest[F[:, 2]]
+        return float(0.5 * np.abs((b - a)[:, 0] * (c - a)[:, 1] - (b - a)[:, 1] * (c - a)[:, 0]).sum())
+
+    polo = make_template("polo", edge_length=0.02)
+    shirt = make_template("tshirt", edge_length=0.02, neck_width=0.18, front_neck_depth=0.06)
+    assert panel_area(polo, "placket") == pytest.approx(0.03 * 0.12, rel=1e-9)
+    assert panel_area(polo, "front") + panel_area(polo, "placket") == pytest.approx(panel_area(shirt, "front"), rel=1e-3)
+    spec = template_spec("polo")
+    panels = {p.name: np.asarray(p.vertices, float) for p in spec.panels}
+    to_front = [s for s in spec.seams if {s.panel_a, s.panel_b} == {"placket", "front"}]
+    assert len(to_front) == 3 and sum("placket" in (s.panel_a, s.panel_b) for s in spec.seams) == 4
+    for s in to_front:   # placed where the notch was: each sewn edge pair coincides, reversed
+        A, B = panels[s.panel_a], panels[s.panel_b]
+        np.testing.assert_allclose(A[s.edge_a], B[(s.edge_b + 1) % len(B)], atol=1e-12)
+        np.testing.assert_allclose(A[(s.edge_a + 1) % len(A)], B[s.edge_b], atol=1e-12)
