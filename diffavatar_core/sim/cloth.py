@@ -184,7 +184,8 @@ class Cloth:
               raise_on_divergence: bool = True) -> DrapeResult:
         """Quasi-static drape: XPBD until every vertex is slower than speed_tol (m/s) or
         max_steps, then (refine=True) Newton refinement of the same energy to a relative force
-        residual ≤ residual_tol; anchor_stiffness κ (1/s²) ties each vertex to its settled
+        residual ≤ residual_tol — converged only if, in addition, no vertex is deeper in the body
+        than 10% of the collision thickness; anchor_stiffness κ (1/s²) ties each vertex to its settled
         position with a spring of stiffness κ·m (a static-friction proxy that also removes the
         zero-energy sliding modes of a frictionless contact). Releases the GIL; progress(ProgressEvent); cancel: CancelToken."""
         p = _sim_params(dt, iterations, gravity, damping, contact_radius, max_speed)
@@ -213,6 +214,13 @@ class Cloth:
             converged = res <= residual_tol
             if not converged:
                 msg = f"Newton refinement after re-detecting contacts stopped at residual {res:.3g}"
+        # an equilibrium with the cloth inside the body is no drape: converged also needs the
+        # deepest vertex within 10% of the collision thickness
+        pen_tol = 0.1 * self.model.thickness
+        if refine and converged and pen > pen_tol:
+            converged = False
+            msg = (f"the equilibrium leaves a vertex {1e3 * pen:.2f} mm inside the body (more than 10% of the "
+                   f"{1e3 * self.model.thickness:.1f} mm collision thickness)")
         res = DrapeResult(converged, r.settled, r.diverged, r.steps, its, r.max_speed,
                           residual, pen, r.wall_s + (time.perf_counter() - t0), msg)
         if res.diverged and raise_on_divergence:

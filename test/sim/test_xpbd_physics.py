@@ -208,3 +208,21 @@ def test_skirt_sews_and_drapes_on_the_body_like_mannequin():
     assert np.linalg.norm(x[sk["seams"][:, 0]] - x[sk["seams"][:, 1]], axis=1).max() < 1e-3
     waist = x[sk["boundaries"]["waist"]]
     assert 0.9 < waist[:, 1].mean() < 1.3  # held by the hips (frictionless: it may ride up), not fallen off
+
+
+def test_an_equilibrium_inside_the_body_is_not_reported_converged():
+    """A small sheet pinned at the centre of a 20 cm ball hangs in equilibrium inside it, out of
+    the contacts' reach: Newton reaches the force residual, but a drape whose cloth is inside the
+    body (deeper than 10% of the thickness) is not converged — and says why."""
+    rest, F = grid_sheet(0.06, 0.06, 7, 7)
+    x0 = np.column_stack([rest[:, 0] - 0.03, np.zeros(len(rest)), 0.03 - rest[:, 1]])
+    V, Fb = sphere(0.2)
+    centre = [int(np.argmin(np.linalg.norm(rest - 0.03, axis=1)))]
+    inside = Cloth(rest, F, x0, pinned=centre, body=(V, Fb), materials=ClothMaterial(bend_stiffness=1e-5))
+    r = inside.drape(max_steps=2000)
+    assert r.residual <= 1e-5 and r.max_penetration > 0.15
+    assert not r.converged and "inside the body" in r.message
+    free = Cloth(rest, F, x0, pinned=centre, materials=ClothMaterial(bend_stiffness=1e-5))   # no body
+    rf = free.drape(max_steps=2000)
+    assert rf.converged and rf.max_penetration == 0.0
+    np.testing.assert_allclose(inside.x, free.x, atol=1e-9)   # the body was never touched
