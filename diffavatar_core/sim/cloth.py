@@ -121,6 +121,24 @@ class Cloth:
         """A copy of the control; change it through set_control (validated)."""
         return self.solver.control
 
+    @property
+    def sweep_plan(self) -> dict:
+        """How a sweep orders its projections (cpp/sim/sweep_plan.hpp): "lanes" 1 = colour by
+        colour; ≥ 2 = that many lanes in parallel, then the "interface_constraints" serially."""
+        return dict(self.solver.sweep_plan)
+
+    def set_sweep_plan(self, lanes: int = 2, min_constraints: int = 16384) -> None:
+        """Lane-parallel sweeps (`lanes` ≥ 2) for models with at least `min_constraints`
+        triangles + hinges + seams, colour by colour otherwise (the default). Changes the order of
+        the Gauss–Seidel projections, hence an unconverged trajectory's round-off and iterates,
+        never the equilibrium; the result never depends on the thread count."""
+        p = _core.SweepPlanParams()
+        p.lanes = _validate.positive_int("lanes", lanes)
+        if int(min_constraints) < 0:
+            raise ValueError(f"min_constraints: expected >= 0, got {min_constraints}")
+        p.min_constraints = int(min_constraints)
+        self.solver.set_sweep_plan(p)
+
     def set_control(self, rest=None, stretch_compliance=None, bend_stiffness=None, body_vertices=None):
         c = self.solver.control
         if rest is not None:

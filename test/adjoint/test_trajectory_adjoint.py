@@ -66,10 +66,21 @@ def _check(cloth, W, start, g, key, base, picks, h, smooth_filter=False):
     assert np.mean(np.sign(adj[big]) == np.sign(num[big])) >= 0.99
 
 
-@pytest.fixture(scope="module")
-def free_sheet():
+def _plan(cloth, plan):
+    """"colours": the colour plan of small models; "lanes": the lane plan forced on (the adjoint
+    must replay and reverse the same passes the forward ran)."""
+    if plan == "lanes":
+        cloth.set_sweep_plan(lanes=2, min_constraints=0)
+        assert cloth.sweep_plan["lanes"] == 2 and cloth.sweep_plan["interface_constraints"] > 0
+    else:
+        assert cloth.sweep_plan["lanes"] == 1
+
+
+@pytest.fixture(scope="module", params=["colours", "lanes"])
+def free_sheet(request):
     """A hanging sheet swinging from a perturbed, moving state (no contact: a smooth map)."""
     cloth, rest, pinned = hanging_sheet(0.1, 0.1, 5, 5, material=MAT)
+    _plan(cloth, request.param)
     rng = np.random.default_rng(0)
     x = np.array(cloth.x) + 0.003 * rng.standard_normal(cloth.x.shape)
     x[pinned] = np.array(cloth.x)[pinned]
@@ -99,8 +110,10 @@ def test_rest_material_and_initial_state_gradients(free_sheet):
     _check(cloth, W, start, g, "v0", np.array(start.v), picks, 1e-6)
 
 
-def test_body_vertex_gradients_through_contact():
+@pytest.mark.parametrize("plan", ["colours", "lanes"])
+def test_body_vertex_gradients_through_contact(plan):
     cloth = sheet_against_sphere(n=5, materials=MAT, contact_stiffness=200.0)
+    _plan(cloth, plan)
     cloth.solver.step(cloth.state, _params(), 30)  # moving and touching
     start = cloth.state.copy()
     W = np.random.default_rng(2).standard_normal(start.x.shape)
@@ -150,8 +163,11 @@ def test_progress_cancellation_and_tape_size(free_sheet):
     with pytest.raises(Cancelled):
         trajectory_gradient(cloth, T, W, progress=progress, cancel=token, **KW)
     m = cloth.model
-    nt, nh, ns = m.num_colors
+    sp = cloth.sweep_plan  # one sweep's slots: the colour passes, or the lanes' then the interface's
+    slots = max(sp["lane_blocks"]) + sp["interface_blocks"] + 1
+    if sp["lanes"] == 1:
+        assert slots == sum(m.num_colors) + 1
     state_mb = (3 * m.num_vertices + 3 * len(m.faces) + len(m.hinges) + 3 * len(m.seams) + m.num_vertices) * 8 / 2**20
-    passes_mb = (nt + nh + ns + 1) * 3 * m.num_vertices * 8 / 2**20
+    passes_mb = slots * 3 * m.num_vertices * 8 / 2**20
     assert 0 < g["step_tape_mb"] <= KW["iterations"] * state_mb + passes_mb
     assert g["peak_tape_mb"] >= g["step_tape_mb"]

@@ -341,30 +341,70 @@ void reverse_contact(const XpbdSolver& S, const RowMatX3d& x, const VecXd& lam, 
   a.lam_contact[ci] = r.lbar[0];
 }
 
-/// Reverses one colour pass. Constraints of one colour share no vertex, so they are reversed in
-/// parallel; the per-group material sums are formed afterwards in colour order, so the result
-/// does not depend on the thread count.
-void reverse_pass(const XpbdSolver& S, const RowMatX3d& x, const SweepLambda& lam, const std::vector<Contact>& contacts,
-                  int kind, const std::vector<int>& color, double dt, Adjoints& a) {
-  const ClothModel& m = S.model();
-  const double dt2 = dt * dt;
-  const int n = static_cast<int>(color.size());
-  if (kind == 0) {
-#pragma omp parallel for schedule(static) if (n >= kReverseParallelMin)
-    for (int j = 0; j < n; ++j) reverse_tri(S, x, lam.tri, color[j], dt2, a);
-    for (int t : color)
-      for (int q = 0; q < 3; ++q) a.g.stretch_compliance(m.tri_group[t], q) += a.tri_sc(t, q);
-  } else if (kind == 1) {
-#pragma omp parallel for schedule(static) if (n >= kReverseParallelMin)
-    for (int j = 0; j < n; ++j) reverse_hinge(S, x, lam.hinge, color[j], dt2, a);
-    for (int h : color) a.g.bend_stiffness[m.hinge_group[h]] += a.hinge_k[h];
-  } else if (kind == 2) {
-#pragma omp parallel for schedule(static) if (n >= kReverseParallelMin)
-    for (int j = 0; j < n; ++j) reverse_seam(S, x, lam.seam, color[j], dt2, a);
-  } else {  // contacts share body vertices: serial
-    for (int ci = 0; ci < static_cast<int>(contacts.size()); ++ci)
-      reverse_contact(S, x, lam.contact, contacts[ci], ci, dt2, a);
+/// Reverses the projections of one block (constraints of one kind sharing no vertex), in
+/// parallel when `parallel` and the block is large. Writes only the block's vertices' rows and
+/// its own per-constraint entries; the per-group material sums are formed by accumulate().
+void reverse_block(const XpbdSolver& S, const RowMatX3d& x, const SweepLambda& lam, const SweepBlock& b, double dt2,
+                   Adjoints& a, bool parallel) {
+  const int n = static_cast<int>(b.idx.size());
+  const bool par = parallel && n >= kReverseParallelMin;
+  if (b.kind == ConstraintKind::kStretch) {
+#pragma omp parallel for schedule(static) if (par)
+    for (int j = 0; j < n; ++j) reverse_tri(S, x, lam.tri, b.idx[j], dt2, a);
+  } else if (b.kind == ConstraintKind::kBending) {
+#pragma omp parallel for schedule(static) if (par)
+    for (int j = 0; j < n; ++j) reverse_hinge(S, x, lam.hinge, b.idx[j], dt2, a);
+  } else {
+#pragma omp parallel for schedule(static) if (par)
+    for (int j = 0; j < n; ++j) reverse_seam(S, x, lam.seam, b.idx[j], dt2, a);
   }
+}
+
+/// Adds a reversed block's per-constraint material adjoints to the per-group sums, in block
+/// order, so the result does not depend on the thread count.
+void accumulate(const ClothModel& m, const SweepBlock& b, Adjoints& a) {
+  if (b.kind == ConstraintKind::kStretch) {
+    for (int t : b.idx)
+      for (int q = 0; q < 3; ++q) a.g.stretch_compliance(m.tri_group[t], q) += a.tri_sc(t, q);
+  } else if (b.kind == ConstraintKind::kBending) {
+    for (int h : b.idx) a.g.bend_stiffness[m.hinge_group[h]] += a.hinge_k[h];
+  }
+}
+
+/// Reverses one sweep from the positions before each of its blocks (`sw`, by plan slot): the
+/// contacts (serial: they share body vertices), the interface, then the lanes — concurrently in
+/// the lane plan, each lane's blocks in reverse order, their material sums afterwards in a fixed
+/// order.
+void reverse_sweep(const XpbdSolver& S, const SweepTape& sw, const SweepLambda& lam,
+                   const std::vector<Contact>& contacts, double dt, Adjoints& a) {
+  const ClothModel& m = S.model();
+  const SweepPlan& plan = S.sweep_plan();
+  const double dt2 = dt * dt;
+  const int nslots = plan.num_slots(), base = plan.max_lane_blocks();
+  const RowMatX3d& xc = sw.x_before[nslots - 1];
+  for (int ci = 0; ci < static_cast<int>(contacts.size()); ++ci)  // independent: any order
+    reverse_contact(S, xc, lam.contact, contacts[ci], ci, dt2, a);
+  for (int k = static_cast<int>(plan.interface.size()) - 1; k >= 0; --k) {
+    reverse_block(S, sw.x_before[base + k], lam, plan.interface[k], dt2, a, true);
+    accumulate(m, plan.interface[k], a);
+  }
+  if (!plan.lane_parallel()) {
+    const auto& blocks = plan.lanes[0];
+    for (int k = static_cast<int>(blocks.size()) - 1; k >= 0; --k) {
+      reverse_block(S, sw.x_before[k], lam, blocks[k], dt2, a, true);
+      accumulate(m, blocks[k], a);
+    }
+    return;
+  }
+  const int nl = static_cast<int>(plan.lanes.size());
+#pragma omp parallel for schedule(static)
+  for (int l = 0; l < nl; ++l) {
+    const auto& blocks = plan.lanes[l];
+    for (int k = static_cast<int>(blocks.size()) - 1; k >= 0; --k)
+      reverse_block(S, sw.x_before[k], lam, blocks[k], dt2, a, false);
+  }
+  for (int l = 0; l < nl; ++l)
+    for (int k = static_cast<int>(plan.lanes[l].size()) - 1; k >= 0; --k) accumulate(m, plan.lanes[l][k], a);
 }
 
 // Reverses one recorded step: on entry a.x holds dφ/dx after the step and vbar dφ/dv after it;
@@ -389,11 +429,10 @@ void reverse_step(XpbdSolver& S, const StepTape& tape, const SimParams& p, Adjoi
   a.lam_hinge = VecXd::Zero(nh);
   a.lam_seam = RowMatX3d::Zero(ns, 3);
   a.lam_contact = VecXd::Zero(nc);
-  const int per_sweep = static_cast<int>(m.tri_colors.size() + m.hinge_colors.size() + m.seam_colors.size()) + 1;
+  const int nslots = S.sweep_plan().num_slots();
   if (static_cast<int>(tape.x_sweep.size()) != p.iterations || tape.lambda_sweep.size() != tape.x_sweep.size() ||
       S.contacts().size() != tape.contacts.size())
     throw std::logic_error("trajectory adjoint: tape does not match the sweep structure");
-  const std::vector<int> none;
   ClothState q;
   SweepLambda lam;
   for (int it = p.iterations - 1; it >= 0; --it) {
@@ -411,16 +450,9 @@ void reverse_step(XpbdSolver& S, const StepTape& tape, const SimParams& p, Adjoi
     q.lambda_seam = lam.seam;
     q.lambda_contact = lam.contact;
     S.sweep(q, dt, &sw);
-    if (static_cast<int>(sw.x_before.size()) != per_sweep)
-      throw std::logic_error("trajectory adjoint: sweep replay does not match the sweep structure");
-    int pass = per_sweep - 1;
-    reverse_pass(S, sw.x_before[pass--], lam, tape.contacts, 3, none, dt, a);
-    for (int k = static_cast<int>(m.seam_colors.size()) - 1; k >= 0; --k)
-      reverse_pass(S, sw.x_before[pass--], lam, tape.contacts, 2, m.seam_colors[k], dt, a);
-    for (int k = static_cast<int>(m.hinge_colors.size()) - 1; k >= 0; --k)
-      reverse_pass(S, sw.x_before[pass--], lam, tape.contacts, 1, m.hinge_colors[k], dt, a);
-    for (int k = static_cast<int>(m.tri_colors.size()) - 1; k >= 0; --k)
-      reverse_pass(S, sw.x_before[pass--], lam, tape.contacts, 0, m.tri_colors[k], dt, a);
+    if (static_cast<int>(sw.x_before.size()) != nslots)
+      throw std::logic_error("trajectory adjoint: sweep replay does not match the sweep plan");
+    reverse_sweep(S, sw, lam, tape.contacts, dt, a);
   }
   // Prediction: x̃ = x + dt (decay v + dt g) for free vertices; pinned stay.
   RowMatX3d vb = RowMatX3d::Zero(nv, 3);

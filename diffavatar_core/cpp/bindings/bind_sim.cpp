@@ -103,6 +103,11 @@ void bind_sim(py::module_& m) {
       .def_readonly("wall_s", &DrapeReport::wall_s)
       .def_readonly("message", &DrapeReport::message);
 
+  py::class_<SweepPlanParams>(m, "SweepPlanParams")
+      .def(py::init<>())
+      .def_readwrite("lanes", &SweepPlanParams::lanes)
+      .def_readwrite("min_constraints", &SweepPlanParams::min_constraints);
+
   py::class_<XpbdSolver>(m, "XpbdSolver")
       .def(py::init<ClothModel, ClothControl>(), py::arg("model"), py::arg("control"))
       .def_property_readonly("model", &XpbdSolver::model, py::return_value_policy::reference_internal)
@@ -110,6 +115,25 @@ void bind_sim(py::module_& m) {
       .def_property_readonly("control", [](const XpbdSolver& s) { return ClothControl(s.control()); })
       .def("set_control", &XpbdSolver::set_control, py::arg("control"), py::call_guard<py::gil_scoped_release>())
       .def("make_state", &XpbdSolver::make_state, py::arg("x"))
+      .def("set_sweep_plan", &XpbdSolver::set_sweep_plan, py::arg("params"))
+      .def_property_readonly("sweep_plan",
+                             [](const XpbdSolver& s) {
+                               const SweepPlan& p = s.sweep_plan();
+                               py::dict d;
+                               d["lanes"] = p.lanes.size();
+                               d["partition"] = p.partition;
+                               py::list sizes;
+                               for (const auto& v : p.lane_vertices) sizes.append(v.size());
+                               d["lane_vertices"] = sizes;
+                               py::list blocks;
+                               for (const auto& l : p.lanes) blocks.append(l.size());
+                               d["lane_blocks"] = blocks;
+                               d["interface_blocks"] = p.interface.size();
+                               d["interface_constraints"] = p.interface_constraints;
+                               d["interface_vertices"] = p.interface_vertices.size();
+                               d["total_constraints"] = p.total_constraints;
+                               return d;
+                             })
       .def("step",
            [](XpbdSolver& s, ClothState& st, const SimParams& p, int n) {
              double v = 0;

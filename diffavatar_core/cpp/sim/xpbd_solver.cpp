@@ -17,6 +17,7 @@ namespace diffavatar {
 constexpr int kParallelMin = 1024;
 
 XpbdSolver::XpbdSolver(ClothModel model, ClothControl control) : model_(std::move(model)) {
+  plan_ = build_sweep_plan(model_, SweepPlanParams());
   collider_ = BodyCollider(control.body_vertices, model_.body_faces);
   set_control(std::move(control));
 }
@@ -43,84 +44,114 @@ void XpbdSolver::detect_contacts(const RowMatX3d& x, const SimParams& p) {
   contacts_ = collider_.detect(x, model_.inv_mass, model_.thickness + p.contact_radius);
 }
 
+void XpbdSolver::set_sweep_plan(const SweepPlanParams& p) {
+  if (p.min_constraints < 0) throw std::invalid_argument("sweep plan: min_constraints must be >= 0");
+  plan_ = build_sweep_plan(model_, p);
+}
+
+// Projects constraint c of `kind` (Eq. 1–2): reads and writes only its own vertices' rows of x
+// and its own multipliers.
+void XpbdSolver::project(ConstraintKind kind, int c, RowMatX3d& x, ClothState& s, double dt2) const {
+  const ClothModel& m = model_;
+  if (kind == ConstraintKind::kStretch) {
+    Vec3 p[3];
+    Vec3* pp[3];
+    double w[3];
+    for (int k = 0; k < 3; ++k) {
+      int i = m.faces(c, k);
+      p[k] = x.row(i).transpose();
+      pp[k] = &p[k];
+      w[k] = m.inv_mass[i];
+    }
+    Vec3 at = control_.stretch_compliance.row(m.tri_group[c]).transpose() / (cache_.tri[c].area * dt2);
+    project_stretch(pp, w, cache_.tri[c], at, &s.lambda_tri(c, 0));
+    for (int k = 0; k < 3; ++k) x.row(m.faces(c, k)) = p[k].transpose();
+  } else if (kind == ConstraintKind::kBending) {
+    double kw = control_.bend_stiffness[m.hinge_group[c]] * cache_.hinge_weight[c];
+    if (!(kw > 0.0)) return;
+    Vec3 p[4];
+    Vec3* pp[4];
+    double w[4];
+    for (int q = 0; q < 4; ++q) {
+      int i = m.hinges(c, q);
+      p[q] = x.row(i).transpose();
+      pp[q] = &p[q];
+      w[q] = m.inv_mass[i];
+    }
+    project_bending(pp, w, m.hinge_rest_angle[c], 1.0 / (kw * dt2), &s.lambda_hinge[c]);
+    for (int q = 0; q < 4; ++q) x.row(m.hinges(c, q)) = p[q].transpose();
+  } else {
+    int a = m.seams(c, 0), b = m.seams(c, 1);
+    Vec3 xa = x.row(a).transpose(), xb = x.row(b).transpose();
+    project_seam(xa, xb, m.inv_mass[a], m.inv_mass[b], m.seam_compliance / dt2, &s.lambda_seam(c, 0));
+    x.row(a) = xa.transpose();
+    x.row(b) = xb.transpose();
+  }
+}
+
 namespace {
-void record(SweepTape* tape, std::size_t pass, const RowMatX3d& x) {
-  if (tape->x_before.size() <= pass) tape->x_before.resize(pass + 1);
-  tape->x_before[pass] = x;  // same size after the first sweep: no reallocation
+void copy_rows(const RowMatX3d& from, RowMatX3d& to, const std::vector<int>& rows) {
+  for (int i : rows) to.row(i) = from.row(i);
 }
 }  // namespace
 
 void XpbdSolver::sweep(ClothState& s, double dt, SweepTape* tape) {
-  std::size_t pass = 0;
   const ClothModel& m = model_;
   const double dt2 = dt * dt;
   RowMatX3d& x = s.x;
-  for (const auto& color : m.tri_colors) {
-    if (tape) record(tape, pass++, x);
-    const int n = static_cast<int>(color.size());
-#pragma omp parallel for schedule(static) if (n >= kParallelMin)
-    for (int j = 0; j < n; ++j) {
-      int t = color[j];
-      Vec3 p[3];
-      Vec3* pp[3];
-      double w[3];
-      for (int k = 0; k < 3; ++k) {
-        int i = m.faces(t, k);
-        p[k] = x.row(i).transpose();
-        pp[k] = &p[k];
-        w[k] = m.inv_mass[i];
-      }
-      Vec3 at = control_.stretch_compliance.row(m.tri_group[t]).transpose() / (cache_.tri[t].area * dt2);
-      project_stretch(pp, w, cache_.tri[t], at, &s.lambda_tri(t, 0));
-      for (int k = 0; k < 3; ++k) x.row(m.faces(t, k)) = p[k].transpose();
-    }
-  }
-  for (const auto& color : m.hinge_colors) {
-    if (tape) record(tape, pass++, x);
-    const int n = static_cast<int>(color.size());
-#pragma omp parallel for schedule(static) if (n >= kParallelMin)
-    for (int j = 0; j < n; ++j) {
-      int h = color[j];
-      double k = control_.bend_stiffness[m.hinge_group[h]];
-      double kw = k * cache_.hinge_weight[h];
-      if (!(kw > 0.0)) continue;
-      Vec3 p[4];
-      Vec3* pp[4];
-      double w[4];
-      for (int q = 0; q < 4; ++q) {
-        int i = m.hinges(h, q);
-        p[q] = x.row(i).transpose();
-        pp[q] = &p[q];
-        w[q] = m.inv_mass[i];
-      }
-      project_bending(pp, w, m.hinge_rest_angle[h], 1.0 / (kw * dt2), &s.lambda_hinge[h]);
-      for (int q = 0; q < 4; ++q) x.row(m.hinges(h, q)) = p[q].transpose();
-    }
-  }
-  for (const auto& color : m.seam_colors) {
-    if (tape) record(tape, pass++, x);
-    const int n = static_cast<int>(color.size());
-#pragma omp parallel for schedule(static) if (n >= kParallelMin)
-    for (int j = 0; j < n; ++j) {
-      int sidx = color[j];
-      int a = m.seams(sidx, 0), b = m.seams(sidx, 1);
-      Vec3 xa = x.row(a).transpose(), xb = x.row(b).transpose();
-      project_seam(xa, xb, m.inv_mass[a], m.inv_mass[b], m.seam_compliance / dt2, &s.lambda_seam(sidx, 0));
-      x.row(a) = xa.transpose();
-      x.row(b) = xb.transpose();
-    }
+  const int nslots = plan_.num_slots(), base = plan_.max_lane_blocks();
+  if (tape) {
+    tape->x_before.resize(nslots);
+    for (auto& xb : tape->x_before)
+      if (xb.rows() != x.rows()) xb.setZero(x.rows(), 3);  // once: later sweeps overwrite in place
   }
   const int nc = static_cast<int>(contacts_.size());
   if (s.lambda_contact.size() != nc) s.lambda_contact = VecXd::Zero(nc);
-  if (tape) record(tape, pass++, x);
   const double ac = 1.0 / (m.contact_stiffness * dt2);
-#pragma omp parallel for schedule(static) if (nc >= kParallelMin)
-  for (int j = 0; j < nc; ++j) {
+  auto contact = [&](int j) {
     const Contact& ct = contacts_[j];
     Vec3 pi = x.row(ct.vertex).transpose();
     project_contact(pi, m.inv_mass[ct.vertex], collider_.normal(ct.tri), collider_.vertex(ct.tri, 0), m.thickness, ac,
                     &s.lambda_contact[j]);
     x.row(ct.vertex) = pi.transpose();
+  };
+  if (!plan_.lane_parallel()) {
+    // Colour plan: one fork/join per colour large enough to pay for it.
+    const auto& blocks = plan_.lanes[0];
+    for (std::size_t k = 0; k < blocks.size(); ++k) {
+      if (tape) tape->x_before[k] = x;
+      const SweepBlock& b = blocks[k];
+      const int n = static_cast<int>(b.idx.size());
+#pragma omp parallel for schedule(static) if (n >= kParallelMin)
+      for (int j = 0; j < n; ++j) project(b.kind, b.idx[j], x, s, dt2);
+    }
+    if (tape) tape->x_before[nslots - 1] = x;
+#pragma omp parallel for schedule(static) if (nc >= kParallelMin)
+    for (int j = 0; j < nc; ++j) contact(j);
+    return;
+  }
+  // Lane plan: one parallel region per sweep and a barrier after each of its three phases.
+  const int nl = static_cast<int>(plan_.lanes.size());
+#pragma omp parallel
+  {
+#pragma omp for schedule(static)
+    for (int l = 0; l < nl; ++l) {
+      const auto& blocks = plan_.lanes[l];
+      for (std::size_t k = 0; k < blocks.size(); ++k) {
+        if (tape) copy_rows(x, tape->x_before[k], plan_.lane_vertices[l]);
+        for (int c : blocks[k].idx) project(blocks[k].kind, c, x, s, dt2);
+      }
+    }
+#pragma omp single
+    {
+      for (std::size_t k = 0; k < plan_.interface.size(); ++k) {
+        if (tape) copy_rows(x, tape->x_before[base + k], plan_.interface_vertices);
+        for (int c : plan_.interface[k].idx) project(plan_.interface[k].kind, c, x, s, dt2);
+      }
+      if (tape) tape->x_before[nslots - 1] = x;
+    }
+#pragma omp for schedule(static)
+    for (int j = 0; j < nc; ++j) contact(j);
   }
 }
 

@@ -2,9 +2,10 @@
 // State kept apart (cloth_model.hpp, cloth_control.hpp, cloth_state.hpp), plus the
 // quasi-static drape of the paper: XPBD dynamics until the garment settles, then Newton
 // refinement of the same energy (cloth_energy.hpp) to the exact equilibrium that the
-// equilibrium adjoint differentiates. Constraints run colour by colour; inside a colour they
-// share no vertex and run in parallel with OpenMP, so results are deterministic for any thread
-// count. Units: m, kg, s.
+// equilibrium adjoint differentiates. A sweep projects the constraints in the order of a
+// SweepPlan (sweep_plan.hpp): colour by colour on small models, lane-parallel with three barriers
+// per sweep on large ones; either way the result does not depend on the thread count.
+// Units: m, kg, s.
 #pragma once
 #include <string>
 #include <vector>
@@ -15,6 +16,7 @@
 #include "sim/cloth_control.hpp"
 #include "sim/cloth_model.hpp"
 #include "sim/cloth_state.hpp"
+#include "sim/sweep_plan.hpp"
 
 namespace diffavatar {
 
@@ -49,8 +51,10 @@ struct StepTape {
   std::vector<Contact> contacts;
 };
 
-/// Positions before every colour pass of one sweep, in order: the triangle colours, the hinge
-/// colours, the seam colours, then the contacts. Entries are overwritten in place when reused.
+/// Positions before every block of one sweep, by the slots of the sweep plan
+/// (SweepPlan::num_slots; the last is before the contacts). In the lane plan each lane writes
+/// only its own vertices' rows of a shared slot, the interface only the rows it touches; a block's
+/// reverse reads only the rows of its constraints. Entries are overwritten in place when reused.
 struct SweepTape {
   std::vector<RowMatX3d> x_before;
 };
@@ -80,8 +84,11 @@ class XpbdSolver {
   ClothState make_state(const RowMatX3d& x) const;
   /// One XPBD step of length p.dt. Returns the max vertex speed (m/s) after the step.
   double step(ClothState& s, const SimParams& p, StepTape* tape = nullptr);
-  /// One projection sweep over all constraints (the benchmark's unit of work).
+  /// One projection sweep over all constraints (the benchmark's unit of work), in plan order.
   void sweep(ClothState& s, double dt, SweepTape* tape = nullptr);
+  /// Rebuilds the sweep plan (the order of the projections, hence the trajectory's round-off).
+  void set_sweep_plan(const SweepPlanParams& p);
+  const SweepPlan& sweep_plan() const { return plan_; }
   DrapeReport drape(ClothState& s, const SimParams& p, const DrapeParams& d, RunControl& rc);
   /// Newton refinement of s.x to ∇ₓE = 0; returns iterations used; sets residual. The anchors
   /// of the friction proxy are set to s.x unless keep_anchor (then the stored ones are reused).
@@ -99,9 +106,11 @@ class XpbdSolver {
   std::vector<int> free_dofs() const;
 
  private:
+  void project(ConstraintKind kind, int c, RowMatX3d& x, ClothState& s, double dt2) const;
   ClothModel model_;
   ClothControl control_;
   RestCache cache_;
+  SweepPlan plan_;
   BodyCollider collider_;
   std::vector<Contact> contacts_;
   RowMatX3d anchor_;
