@@ -5,6 +5,7 @@
 // and the rest-shape weight w = 3|ē|²/(Ā1 + Ā2) (dimensionless) from the pattern; compliance
 // α̃ = 1/(k w dt²).
 #pragma once
+#include "common/fast_atan2.hpp"
 #include <Eigen/Geometry>
 #include <cmath>
 
@@ -51,7 +52,7 @@ inline bool dihedral_gradient(const Vec3& a, const Vec3& b, const Vec3& c, const
   double q1 = n1.squaredNorm(), q2 = n2.squaredNorm();
   if (el < 1e-12 || q1 < 1e-30 || q2 < 1e-30) return false;
   Vec3 eh = e / el;
-  *theta = std::atan2(n1.cross(n2).dot(eh), n1.dot(n2));
+  *theta = fast_atan2(n1.cross(n2).dot(eh), n1.dot(n2));
   Vec3 m1 = n1 / q1, m2 = n2 / q2;
   g[2] = -el * m1;
   g[3] = -el * m2;
