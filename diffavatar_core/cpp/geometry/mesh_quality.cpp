@@ -1,5 +1,7 @@
 #include "geometry/mesh_quality.hpp"
 
+#include <Eigen/Geometry>  // cross()
+
 namespace diffavatar {
 
 VecXd triangle_quality(const RefX3d& V, const RefX3i& F) {

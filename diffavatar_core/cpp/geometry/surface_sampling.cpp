@@ -1,5 +1,6 @@
 #include "geometry/surface_sampling.hpp"
 
+#include <Eigen/Geometry>  // cross()
 #include <algorithm>
 #include <cmath>
 #include <random>
