@@ -87,6 +87,9 @@ class Ours:
     def sweeps(self, n):
         self.cloth.solver.sweep(self.state, DT, n)
 
+    def plan(self, lanes):
+        self.cloth.set_sweep_plan(lanes=lanes)
+
     @property
     def x(self):
         return np.array(self.state.x)
@@ -218,8 +221,18 @@ def main(argv=None):
     # Interleaved timing: ours (steps, then sweeps alone), Newton (steps), repeated.
     ours.steps(1)  # warm (allocations, first contact detection)
     ours.reset()
-    res = {"ours_step": [], "ours_step_cpu": [], "ours_sweep": [], "ours_sweep_cpu": [], "ref_step": [], "ref_step_cpu": []}
+    # Ours twice: with the default sweep plan (lane-parallel on this model) and with the colour
+    # plan (one parallel pass per colour, the plan of stop 15 and of small models).
+    res = {"ours_step": [], "ours_step_cpu": [], "ours_sweep": [], "ours_sweep_cpu": [], "ref_step": [], "ref_step_cpu": [],
+           "colour_step": [], "colour_step_cpu": []}
+    plan = dict(cloth.sweep_plan)
     for _ in range(a.repeats):
+        ours.plan(1)
+        ours.reset()
+        w, c = timed(lambda: ours.steps(a.steps))
+        res["colour_step"].append(w / a.steps)
+        res["colour_step_cpu"].append(c / a.steps)
+        ours.plan(plan["lanes"])
         ours.reset()
         w, c = timed(lambda: ours.steps(a.steps))
         res["ours_step"].append(w / a.steps)
@@ -238,7 +251,10 @@ def main(argv=None):
     ms_step = 1e3 * min(res["ours_step"])
     out.update(ms_per_step=ms_step, ms_per_iteration=ms_step / a.iterations, steps_per_s=1e3 / ms_step,
                sweep_ms=1e3 * min(res["ours_sweep"]), cpu_ms_per_iteration=1e3 * min(res["ours_step_cpu"]) / a.iterations,
-               contacts_after_timed_steps=int(cloth.solver.num_contacts),
+               contacts_after_timed_steps=int(cloth.solver.num_contacts), sweep_plan=plan,
+               colour_plan_ms_per_step=1e3 * min(res["colour_step"]),
+               colour_plan_ms_per_iteration=1e3 * min(res["colour_step"]) / a.iterations,
+               lane_plan_speedup_vs_colour_plan=min(res["colour_step"]) / min(res["ours_step"]),
                state_after_timed_steps=ours_state)
 
     if ref is not None:
@@ -255,6 +271,7 @@ def main(argv=None):
             reference_cpu_ms_per_iteration=1e3 * min(res["ref_step_cpu"]) / a.iterations,
             speedup_vs_reference=ref_ms / ms_step,
             speedup_vs_reference_cpu_time=min(res["ref_step_cpu"]) / min(res["ours_step_cpu"]),
+            colour_plan_speedup_vs_reference=ref_ms / (1e3 * min(res["colour_step"])),
             reference_warmup_s=warmup_s, reference_counts=ref.counts,
             reference_contacts_after_timed_steps=ref.num_contacts,
             reference_state_after_timed_steps=summary(ref.x, g["x0"], cloth.solver),
