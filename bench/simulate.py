@@ -299,11 +299,12 @@ def main(argv=None):
         out.update(converged=None, max_penetration_mm=None, drape="skipped (--drape-steps 0)")
         return _emit(out, t0, json_out)
     cloth.reset(g["x0"])
+    sew_steps = cloth.sew()  # as `diffavatar drape` does: close the seams before draping
     r = cloth.drape(max_steps=a.drape_steps, iterations=a.drape_iterations, raise_on_divergence=False)
     x = np.array(cloth.x)
     gap = float(np.linalg.norm(x[g["seams"][:, 0]] - x[g["seams"][:, 1]], axis=1).max())
     out.update(converged=bool(r.converged), max_penetration_mm=1e3 * r.max_penetration,
-               drape={"steps": r.steps, "step_budget": a.drape_steps, "iterations_per_step": a.drape_iterations,
+               drape={"sew_steps": sew_steps, "steps": r.steps, "step_budget": a.drape_steps, "iterations_per_step": a.drape_iterations,
                       "settled": r.settled, "converged": r.converged, "diverged": r.diverged, "residual": r.residual,
                       "refine_iterations": r.refine_iterations, "max_seam_gap_mm": 1e3 * gap, "wall_s": r.wall_s,
                       "message": r.message})
