@@ -196,7 +196,7 @@ class Cloth:
         return n
 
     def drape(self, max_steps: int = 2000, min_steps: int = 20, speed_tol: float = 2e-3,
-              refine: bool = True, residual_tol: float = 1e-5, refine_iterations: int = 60, anchor_stiffness: float = 1.0,
+              refine: bool = True, residual_tol: float = 1e-5, refine_iterations: int = 200, anchor_stiffness: float = 1.0,
               dt: float = 1 / 120, iterations: int = 100, gravity=(0, -9.81, 0), damping: float = 4.0,
               contact_radius: float = 0.01, max_speed: float = 50.0, progress=None, cancel=None,
               raise_on_divergence: bool = True) -> DrapeResult:
@@ -245,7 +245,7 @@ class Cloth:
             raise SimulationDiverged(res)
         return res
 
-    def refine(self, keep_anchor: bool = True, keep_contacts: bool = False, residual_tol: float = 1e-5, refine_iterations: int = 60,
+    def refine(self, keep_anchor: bool = True, keep_contacts: bool = False, residual_tol: float = 1e-5, refine_iterations: int = 200,
                anchor_stiffness: float = 1.0, progress=None, cancel=None) -> tuple[int, float]:
         """Newton refinement of the current state to equilibrium with the last drape's simulation
         parameters; keep_anchor reuses the anchors of the last refinement and keep_contacts its
