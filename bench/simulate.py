@@ -54,14 +54,14 @@ def parse_args(argv=None):
     ap.add_argument("--iterations", type=int, default=100, help="projection sweeps per step, both solvers")
     ap.add_argument("--steps", type=int, default=None, help="timed steps per repeat (default 2)")
     ap.add_argument("--repeats", type=int, default=None, help="timing repeats, best kept (default 3)")
-    ap.add_argument("--drape-steps", type=int, default=None, help="step budget of the drape (default 300; 0 skips the drape)")
-    ap.add_argument("--drape-iterations", type=int, default=20, help="sweeps per step in the drape")
+    ap.add_argument("--drape-steps", type=int, default=None, help="step budget of the drape (default 1500 as diffavatar drape; 0 skips the drape)")
+    ap.add_argument("--drape-iterations", type=int, default=100, help="sweeps per step in the drape (default 100 as diffavatar drape)")
     ap.add_argument("--no-reference", action="store_true", help="skip Newton")
     a = ap.parse_args(argv)
     a.edge = a.edge or (0.025 if a.quick else 0.01)
     a.steps = a.steps or 2
     a.repeats = a.repeats or 3
-    a.drape_steps = 300 if a.drape_steps is None else a.drape_steps
+    a.drape_steps = 1500 if a.drape_steps is None else a.drape_steps
     return a
 
 
