@@ -1,8 +1,6 @@
-// Bindings: cancel token, progress event, Cancelled exception, the hot-loop atan2.
-#include <pybind11/numpy.h>
+// Bindings: cancel token, progress event, Cancelled exception.
 #include <pybind11/pybind11.h>
 
-#include "common/fast_atan2.hpp"
 #include "common/run_control.hpp"
 
 namespace py = pybind11;
@@ -27,9 +25,6 @@ void bind_common(py::module_& m) {
       });
 
   py::register_exception<Cancelled>(m, "Cancelled", PyExc_RuntimeError);
-
-  m.def("fast_atan2", py::vectorize(fast_atan2), py::arg("y"), py::arg("x"),
-        "atan2 of the bending kernel (rad), elementwise (common/fast_atan2.hpp).");
 }
 
 }  // namespace diffavatar

@@ -5,7 +5,6 @@
 // and the rest-shape weight w = 3|ē|²/(Ā1 + Ā2) (dimensionless) from the pattern; compliance
 // α̃ = 1/(k w dt²).
 #pragma once
-#include "common/fast_atan2.hpp"
 #include <Eigen/Geometry>
 #include <cmath>
 
@@ -54,7 +53,7 @@ inline bool dihedral_gradient(const Vec3& a, const Vec3& b, const Vec3& c, const
   // Three reciprocals instead of nine divisions (divisions dominated this kernel's profile).
   const double iel = 1.0 / el;
   Vec3 eh = e * iel;
-  *theta = fast_atan2(n1.cross(n2).dot(eh), n1.dot(n2));
+  *theta = std::atan2(n1.cross(n2).dot(eh), n1.dot(n2));
   Vec3 m1 = n1 * (1.0 / q1), m2 = n2 * (1.0 / q2);
   g[2] = -el * m1;
   g[3] = -el * m2;
