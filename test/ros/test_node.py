@@ -139,6 +139,13 @@ def setup_service(ros_context, client_context, tmp_path):
         cli = Client(client_context)
         made.extend([cli, svc])
         cli.wait_matched()
+        # Discovery is not symmetric: the client seeing the node's publishers does not mean the
+        # node's publishers have matched the client's subscriptions yet (a loaded machine lost
+        # the first "queued" progress message that way). Wait for the node's side too.
+        deadline = time.monotonic() + 10.0
+        while not (svc.node._progress_pub.get_subscription_count() and svc.node._result_pub.get_subscription_count()):
+            assert time.monotonic() < deadline, "the node did not discover the client"
+            time.sleep(0.02)
         return svc, cli
 
     yield make
