@@ -50,11 +50,9 @@ inline bool dihedral_gradient(const Vec3& a, const Vec3& b, const Vec3& c, const
   Vec3 n1 = e.cross(c - a), n2 = (d - a).cross(e);
   double q1 = n1.squaredNorm(), q2 = n2.squaredNorm();
   if (el < 1e-12 || q1 < 1e-30 || q2 < 1e-30) return false;
-  // Three reciprocals instead of nine divisions (divisions dominated this kernel's profile).
-  const double iel = 1.0 / el;
-  Vec3 eh = e * iel;
+  Vec3 eh = e / el;
   *theta = std::atan2(n1.cross(n2).dot(eh), n1.dot(n2));
-  Vec3 m1 = n1 * (1.0 / q1), m2 = n2 * (1.0 / q2);
+  Vec3 m1 = n1 / q1, m2 = n2 / q2;
   g[2] = -el * m1;
   g[3] = -el * m2;
   g[0] = -((c - b).dot(eh)) * m1 - ((d - b).dot(eh)) * m2;

@@ -65,33 +65,30 @@ inline void project_stretch(Vec3* p[3], const double w[3], const StretchRest& r,
   Vec3 d1 = *p[1] - *p[0], d2 = *p[2] - *p[0];
   Vec3 f0 = d1 * B(0, 0) + d2 * B(1, 0), f1 = d1 * B(0, 1) + d2 * B(1, 1);
   Vec3 C(0.5 * (f0.squaredNorm() - 1.0), 0.5 * (f1.squaredNorm() - 1.0), 0.5 * f0.dot(f1));
-  // ∂f0/∂x_k = c0_k I, ∂f1/∂x_k = c1_k I, so ∇_k C = [c0_k f0, c1_k f1, ½(c0_k f1 + c1_k f0)] and
-  // the 3×3 block ∇C W ∇Cᵀ needs only the weighted sums s_ij = Σ_k w_k ci_k cj_k.
-  const double c0[3] = {-(B(0, 0) + B(1, 0)), B(0, 0), B(1, 0)};
-  const double c1[3] = {-(B(0, 1) + B(1, 1)), B(0, 1), B(1, 1)};
-  double s00 = 0.0, s01 = 0.0, s11 = 0.0;
+  // coefficients c_k0, c_k1 of ∂f0/∂x_k, ∂f1/∂x_k (times identity)
+  double c0[3] = {-(B(0, 0) + B(1, 0)), B(0, 0), B(1, 0)};
+  double c1[3] = {-(B(0, 1) + B(1, 1)), B(0, 1), B(1, 1)};
+  Vec3 grad[3][3];  // grad[a][k] = ∂C_a/∂x_k
   for (int k = 0; k < 3; ++k) {
-    s00 += w[k] * c0[k] * c0[k];
-    s01 += w[k] * c0[k] * c1[k];
-    s11 += w[k] * c1[k] * c1[k];
+    grad[0][k] = c0[k] * f0;
+    grad[1][k] = c1[k] * f1;
+    grad[2][k] = 0.5 * (c0[k] * f1 + c1[k] * f0);
   }
-  const double n0 = f0.squaredNorm(), n1 = f1.squaredNorm(), n01 = f0.dot(f1);
-  Eigen::Matrix3d A;
-  A(0, 0) = s00 * n0 + alpha_tilde[0];
-  A(1, 1) = s11 * n1 + alpha_tilde[1];
-  A(2, 2) = 0.25 * (s00 * n1 + 2.0 * s01 * n01 + s11 * n0) + alpha_tilde[2];
-  A(0, 1) = A(1, 0) = s01 * n01;
-  A(0, 2) = A(2, 0) = 0.5 * (s00 * n01 + s01 * n0);
-  A(1, 2) = A(2, 1) = 0.5 * (s01 * n1 + s11 * n01);
+  Eigen::Matrix3d A = alpha_tilde.asDiagonal();
+  for (int a = 0; a < 3; ++a)
+    for (int b = a; b < 3; ++b) {
+      double s = 0.0;
+      for (int k = 0; k < 3; ++k) s += w[k] * grad[a][k].dot(grad[b][k]);
+      A(a, b) += s;
+      if (b != a) A(b, a) += s;
+    }
   Vec3 lam(lambda[0], lambda[1], lambda[2]);
   Vec3 rhs = -(C + alpha_tilde.cwiseProduct(lam));
   Vec3 dl = A.inverse() * rhs;  // SPD 3×3: closed-form cofactor inverse
   for (int a = 0; a < 3; ++a) lambda[a] += dl[a];
-  // Δx_k = w_k ∇_k Cᵀ Δλ = w_k (c0_k g0 + c1_k g1)
-  const Vec3 g0 = dl[0] * f0 + 0.5 * dl[2] * f1, g1 = dl[1] * f1 + 0.5 * dl[2] * f0;
   for (int k = 0; k < 3; ++k) {
     if (w[k] == 0.0) continue;
-    *p[k] += w[k] * (c0[k] * g0 + c1[k] * g1);
+    *p[k] += w[k] * (grad[0][k] * dl[0] + grad[1][k] * dl[1] + grad[2][k] * dl[2]);
   }
 }
 
