@@ -20,38 +20,10 @@ namespace {
 // 532-vertex skirt's adjoint ~8× slower on 2 loaded cores).
 constexpr int kReverseParallelMin = 1024;
 
-template <class T>
-V3<T> var3(const RowMatX3d& X, int i, int off) {
-  return {T::var(X(i, 0), off), T::var(X(i, 1), off + 1), T::var(X(i, 2), off + 2)};
-}
 inline V3<double> val3(const RowMatX3d& X, int i) { return {X(i, 0), X(i, 1), X(i, 2)}; }
-template <class T>
-T comp(const V3<T>& v, int d) {
-  return d == 0 ? v.x : (d == 1 ? v.y : v.z);
-}
+inline V3<double> val3(const double* r) { return {r[0], r[1], r[2]}; }
 
-// ---- closed-form constraint values and x-gradients, generic in the scalar -------------------
-// Differentiating these once with duals gives exactly the Hessian-vector products the reverse
-// projection needs (projection_vjp.hpp).
-
-/// Stretch block (stretch_kernel.hpp): C = Green strain [ε00, ε11, ε01] with B = D̄⁻¹ given as
-/// (B00, B01, B10, B11), and g[a][k] = ∂C_a/∂x_k.
-template <class T>
-void stretch_cg(const V3<T> x[3], const T B[4], T C[3], V3<T> g[3][3]) {
-  const T &B00 = B[0], &B01 = B[1], &B10 = B[2], &B11 = B[3];
-  V3<T> d1 = x[1] - x[0], d2 = x[2] - x[0];
-  V3<T> f0 = d1 * B00 + d2 * B10, f1 = d1 * B01 + d2 * B11;
-  C[0] = 0.5 * (dot(f0, f0) - 1.0);
-  C[1] = 0.5 * (dot(f1, f1) - 1.0);
-  C[2] = 0.5 * dot(f0, f1);
-  const T c0[3] = {-(B00 + B10), B00, B10};
-  const T c1[3] = {-(B01 + B11), B01, B11};
-  for (int k = 0; k < 3; ++k) {
-    g[0][k] = f0 * c0[k];
-    g[1][k] = f1 * c1[k];
-    g[2][k] = (f1 * c0[k] + f0 * c1[k]) * T(0.5);
-  }
-}
+// ---- closed-form constraint geometry ---------------------------------------------------------
 
 /// B = D̄⁻¹ from the rest corners u (stretch_kernel.hpp, green_strain), as (B00, B01, B10, B11).
 template <class T>
@@ -65,24 +37,59 @@ void rest_inverse(const T u[3][2], T B[4]) {
   B[3] = a / det;
 }
 
-/// Hinge (bending_kernel.hpp, dihedral_gradient): θ and ∇θ; false if degenerate.
-template <class T>
-bool dihedral_cg(const V3<T>& a, const V3<T>& b, const V3<T>& c, const V3<T>& d, T* theta, V3<T> g[4]) {
-  V3<T> e = b - a;
-  T el = norm(e);
-  V3<T> n1 = cross(e, c - a), n2 = cross(d - a, e);
-  T q1 = dot(n1, n1), q2 = dot(n2, n2);
-  if (value_of(el) < 1e-12 || value_of(q1) < 1e-30 || value_of(q2) < 1e-30) return false;
-  T iel = T(1.0) / el;
-  V3<T> eh = e * iel;
-  *theta = atan2(dot(cross(n1, n2), eh), dot(n1, n2));
-  V3<T> m1 = n1 * (T(1.0) / q1), m2 = n2 * (T(1.0) / q2);
-  g[2] = m1 * (-el);
-  g[3] = m2 * (-el);
-  g[0] = m1 * (-dot(c - b, eh)) - m2 * dot(d - b, eh);
-  g[1] = m1 * dot(c - a, eh) + m2 * dot(d - a, eh);
-  return true;
-}
+/// Hinge (bending_kernel.hpp, dihedral_gradient): ∇θ and, for the reverse projection's
+/// Hessian-vector product, its directional derivative D(∇θ)[v] by differentiating the same closed
+/// form once (forward mode, by hand). θ itself comes from the tape. `ok` is false when degenerate
+/// (the same test as the forward projection, which then skipped the hinge).
+struct HingeGeom {
+  using V = Eigen::Vector3d;
+  V e, ca, da, cb, db, eh, m1, m2;
+  double el, q1, q2, t1, t2, t3, t4;
+  bool ok;
+  V g[4];  // ∇_a θ, ∇_b θ, ∇_c θ, ∇_d θ
+
+  explicit HingeGeom(const double* x) {
+    const Eigen::Map<const V> a(x), b(x + 3), c(x + 6), d(x + 9);
+    e = b - a;
+    ca = c - a;
+    da = d - a;
+    cb = c - b;
+    db = d - b;
+    el = e.norm();
+    const V n1 = e.cross(ca), n2 = da.cross(e);
+    q1 = n1.squaredNorm();
+    q2 = n2.squaredNorm();
+    ok = !(el < 1e-12 || q1 < 1e-30 || q2 < 1e-30);
+    if (!ok) return;
+    eh = e / el;
+    m1 = n1 / q1;
+    m2 = n2 / q2;
+    t1 = cb.dot(eh);
+    t2 = db.dot(eh);
+    t3 = ca.dot(eh);
+    t4 = da.dot(eh);
+    g[0] = -t1 * m1 - t2 * m2;
+    g[1] = t3 * m1 + t4 * m2;
+    g[2] = -el * m1;
+    g[3] = -el * m2;
+  }
+  /// gt[k] = D(∇_k θ)[v], v = (v_a, v_b, v_c, v_d) as 12 doubles.
+  void tangent(const double* v, V gt[4]) const {
+    const Eigen::Map<const V> va(v), vb(v + 3), vc(v + 6), vd(v + 9);
+    const V de = vb - va, dca = vc - va, dda = vd - va, dcb = vc - vb, ddb = vd - vb;
+    const V n1 = m1 * q1, n2 = m2 * q2;
+    const V dn1 = de.cross(ca) + e.cross(dca), dn2 = dda.cross(e) + da.cross(de);
+    const double del = eh.dot(de);
+    const V deh = (de - eh * del) / el;
+    const V dm1 = (dn1 - m1 * (2.0 * n1.dot(dn1))) / q1, dm2 = (dn2 - m2 * (2.0 * n2.dot(dn2))) / q2;
+    const double dt1 = dcb.dot(eh) + cb.dot(deh), dt2 = ddb.dot(eh) + db.dot(deh);
+    const double dt3 = dca.dot(eh) + ca.dot(deh), dt4 = dda.dot(eh) + da.dot(deh);
+    gt[0] = -dt1 * m1 - t1 * dm1 - dt2 * m2 - t2 * dm2;
+    gt[1] = dt3 * m1 + t3 * dm1 + dt4 * m2 + t4 * dm2;
+    gt[2] = -del * m1 - el * dm1;
+    gt[3] = -del * m2 - el * dm2;
+  }
+};
 
 /// Contact (contact_kernel.hpp): C = n̂·(p − b0) − h, ∇_p C = n̂, n = (b1−b0)×(b2−b0).
 template <class T>
@@ -135,9 +142,17 @@ struct Adjoints {
   VecXd lam_hinge;
   RowMatX3d lam_seam;
   VecXd lam_contact;
-  ControlGradient g;  // accumulated control gradient
-  RowMatX3d tri_sc;   // per-triangle contribution to dφ/dα (summed per group in colour order)
-  VecXd hinge_k;      // per-hinge contribution to dφ/dk
+  ControlGradient g;  // control gradient (body vertices directly; the rest in finish_control)
+  // Per-constraint sums over every projection of the trajectory. The rest shape and the material
+  // enter a projection only through these per-constraint quantities, and the control is fixed
+  // during the call, so their chain rule to u, α and k is applied once at the end
+  // (finish_control) instead of once per projection; each constraint is reversed by one thread
+  // per sweep, so the sums do not depend on the thread count.
+  Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor> tri_B;  // ∂φ/∂(B00, B01, B10, B11), B = D̄⁻¹
+  VecXd tri_area;                                                  // ∂φ/∂Ā (m⁻² · φ)
+  RowMatX3d tri_sc;                                                // ∂φ/∂α (warp, weft, shear)
+  VecXd hinge_w;                                                   // ∂φ/∂w (hinge weight)
+  VecXd hinge_k;                                                   // ∂φ/∂k
 };
 
 /// Multipliers at the start of a sweep, all constraint kinds.
@@ -148,144 +163,134 @@ struct SweepLambda {
   VecXd contact;
 };
 
-// z̄ = ∇_z ψ (projection_vjp.hpp) in closed form. The rest-coordinate rows: ψ depends on u only
-// through B = D̄⁻¹ (4 numbers), so ∂ψ/∂B times the cached ∂B/∂u.
-void reverse_tri(const XpbdSolver& S, const RowMatX3d& x, const RowMatX3d& lam, int t, double dt2, Adjoints& a) {
+// z̄ = ∇_z ψ (projection_vjp.hpp) in closed form, using the block's structure instead of its
+// 3×9 matrices. With f0 = D B e0, f1 = D B e1 (B = D̄⁻¹) the rows of G = ∂C/∂x are, per corner k,
+//   G_0k = c0_k f0,  G_1k = c1_k f1,  G_2k = ½(c0_k f1 + c1_k f0),
+// c0 = (−B00−B10, B00, B10), c1 = (−B01−B11, B01, B11). Hence, with w_k the inverse masses,
+// s_k = w_k x̄'_k, σ0 = Σ c0_k s_k, σ1 = Σ c1_k s_k and the scalars s00 = Σ w c0², s01 = Σ w c0 c1,
+// s11 = Σ w c1²:  A = G W Gᵀ + diag(α̃) has A00 = s00|f0|², A11 = s11|f1|², A01 = s01 f0·f1, …;
+// G s = (f0·σ0, f1·σ1, ½(f1·σ0 + f0·σ1)); and Ḡ = Δλ sᵀ + M G W (M = Ā + Āᵀ, Ā the adjoint of A)
+// has blocks Ḡ_ak = Δλ_a s_k + w_k (c0_k U_a + c1_k V_a), U_a = M_a0 f0 + ½M_a2 f1,
+// V_a = M_a1 f1 + ½M_a2 f0. ψ = C̄·C + Σ_a,k Ḡ_ak·G_ak is then differentiated in x and in B:
+//   ∂ψ/∂x_k = c0_k S0 + c1_k S1, S0 = C̄0 f0 + ½C̄2 f1 + R0, S1 = C̄1 f1 + ½C̄2 f0 + R1,
+//   R0 = P0 + ½Q1, R1 = P1 + ½Q0 with P0 = Σ c0_k Ḡ_0k, P1 = Σ c1_k Ḡ_1k, Q0 = Σ c0_k Ḡ_2k,
+//   Q1 = Σ c1_k Ḡ_2k; ∂ψ/∂B through ∂f0 = d1 ∂B00 + d2 ∂B10, ∂f1 = d1 ∂B01 + d2 ∂B11 and
+//   ∂(Σ_k c_k V_k)/∂B = V_1 − V_0 or V_2 − V_0 (E_a1, E_a2). The rest coordinates follow from
+//   ∂ψ/∂B and ∂ψ/∂Ā in finish_control.
+void reverse_tri(const XpbdSolver& S, const double* rec, const RowMatX3d& lam, int t, double dt2, Adjoints& a) {
+  using V = Eigen::Vector3d;
   const ClothModel& m = S.model();
-  const ClothControl& c = S.control();
   const RestCache& rc = S.cache();
   int vi[3];
-  V3<double> xd[3];
-  Eigen::Matrix<double, 9, 1> w, xb;
+  double w[3];
+  V sv[3];
   for (int k = 0; k < 3; ++k) {
-    int i = vi[k] = m.faces(t, k);
-    xd[k] = val3(x, i);
-    w.segment<3>(3 * k).setConstant(m.inv_mass[i]);
-    xb.segment<3>(3 * k) = a.x.row(i).transpose();
+    vi[k] = m.faces(t, k);
+    w[k] = m.inv_mass[vi[k]];
+    sv[k] = w[k] * a.x.row(vi[k]).transpose();
   }
-  const Eigen::Matrix2d& Bm = rc.tri[t].B;
-  const double Bd[4] = {Bm(0, 0), Bm(0, 1), Bm(1, 0), Bm(1, 1)};
-  double Cd[3];
-  V3<double> gd[3][3];
-  stretch_cg(xd, Bd, Cd, gd);
-  Eigen::Vector3d C(Cd[0], Cd[1], Cd[2]);
-  Eigen::Matrix<double, 3, 9> G;
-  for (int q = 0; q < 3; ++q)
-    for (int k = 0; k < 3; ++k) G.block<1, 3>(q, 3 * k) << gd[q][k].x, gd[q][k].y, gd[q][k].z;
+  const V x0 = Eigen::Map<const V>(rec);
+  const V d1 = Eigen::Map<const V>(rec + 3) - x0, d2 = Eigen::Map<const V>(rec + 6) - x0;
+  const Eigen::Matrix2d& B = rc.tri[t].B;
+  const double B00 = B(0, 0), B01 = B(0, 1), B10 = B(1, 0), B11 = B(1, 1);
+  const V f0 = d1 * B00 + d2 * B10, f1 = d1 * B01 + d2 * B11;
+  const double c0[3] = {-(B00 + B10), B00, B10};
+  const double c1[3] = {-(B01 + B11), B01, B11};
+  const double ff00 = f0.squaredNorm(), ff11 = f1.squaredNorm(), ff01 = f0.dot(f1);
+  const V C(0.5 * (ff00 - 1.0), 0.5 * (ff11 - 1.0), 0.5 * ff01);
+  double s00 = 0.0, s01 = 0.0, s11 = 0.0;
+  V sg0 = V::Zero(), sg1 = V::Zero();
+  for (int k = 0; k < 3; ++k) {
+    s00 += w[k] * c0[k] * c0[k];
+    s01 += w[k] * c0[k] * c1[k];
+    s11 += w[k] * c1[k] * c1[k];
+    sg0 += c0[k] * sv[k];
+    sg1 += c1[k] * sv[k];
+  }
   const double area = rc.tri[t].area;
-  Eigen::Vector3d al = c.stretch_compliance.row(m.tri_group[t]).transpose();
-  Eigen::Vector3d at = al / (area * dt2);
-  Eigen::Vector3d lm = lam.row(t).transpose();
-  Eigen::Vector3d lb = a.lam_tri.row(t).transpose();
-  auto r = block_adjoint<3, 9>(C, G, w, at, lm, false, xb, lb);
-  // ψ = C̄·C + f0·(P0 + ½Q1) + f1·(P1 + ½Q0) with P0 = Σ_k c0_k Ḡ_0k, P1 = Σ_k c1_k Ḡ_1k,
-  // Q0 = Σ_k c0_k Ḡ_2k, Q1 = Σ_k c1_k Ḡ_2k (Ḡ_ak the 3-block of row a for corner k), since
-  // ∇_k C_0 = c0_k f0, ∇_k C_1 = c1_k f1, ∇_k C_2 = ½(c0_k f1 + c1_k f0). f0, f1 and c0, c1 are
-  // linear in x and in B respectively, so its gradients are closed-form:
-  //   ∂ψ/∂x_k = (Gᵀ C̄)_k + c0_k (P0 + ½Q1) + c1_k (P1 + ½Q0),
-  //   ∂ψ/∂B via ∂f0 = d1 ∂B00 + d2 ∂B10, ∂f1 = d1 ∂B01 + d2 ∂B11 and ∂(Σ_k c_k V_k)/∂B = V_1 − V_0
-  //   or V_2 − V_0 (E_a1, E_a2 below).
-  const double c0[3] = {-(Bd[0] + Bd[2]), Bd[0], Bd[2]};
-  const double c1[3] = {-(Bd[1] + Bd[3]), Bd[1], Bd[3]};
-  auto blk = [&](int q, int k) -> Eigen::Vector3d { return r.Gbar.block<1, 3>(q, 3 * k).transpose(); };
-  Eigen::Vector3d P0 = Eigen::Vector3d::Zero(), P1 = P0, Q0 = P0, Q1 = P0;
-  for (int k = 0; k < 3; ++k) {
-    P0 += c0[k] * blk(0, k);
-    P1 += c1[k] * blk(1, k);
-    Q0 += c0[k] * blk(2, k);
-    Q1 += c1[k] * blk(2, k);
-  }
-  const Eigen::Vector3d R0 = P0 + 0.5 * Q1, R1 = P1 + 0.5 * Q0;
-  Eigen::Matrix<double, 9, 1> zx = G.transpose() * r.Cbar;
-  for (int k = 0; k < 3; ++k) zx.segment<3>(3 * k) += c0[k] * R0 + c1[k] * R1;
-  const Eigen::Vector3d x0(xd[0].x, xd[0].y, xd[0].z);
-  const Eigen::Vector3d d1 = Eigen::Vector3d(xd[1].x, xd[1].y, xd[1].z) - x0;
-  const Eigen::Vector3d d2 = Eigen::Vector3d(xd[2].x, xd[2].y, xd[2].z) - x0;
-  const Eigen::Vector3d f0 = d1 * Bd[0] + d2 * Bd[2], f1 = d1 * Bd[1] + d2 * Bd[3];
-  const Eigen::Vector3d E01 = blk(0, 1) - blk(0, 0), E02 = blk(0, 2) - blk(0, 0);
-  const Eigen::Vector3d E11 = blk(1, 1) - blk(1, 0), E12 = blk(1, 2) - blk(1, 0);
-  const Eigen::Vector3d E21 = blk(2, 1) - blk(2, 0), E22 = blk(2, 2) - blk(2, 0);
-  // vectors multiplying d1/d2 in ∂ψ/∂B: C̄0 f0 + ½C̄2 f1 + R0 (B00, B10) and C̄1 f1 + ½C̄2 f0 + R1 (B01, B11)
-  const Eigen::Vector3d S0 = r.Cbar[0] * f0 + 0.5 * r.Cbar[2] * f1 + R0;
-  const Eigen::Vector3d S1 = r.Cbar[1] * f1 + 0.5 * r.Cbar[2] * f0 + R1;
-  Eigen::Matrix<double, 4, 1> psiB;
-  psiB[0] = d1.dot(S0) + f0.dot(E01) + 0.5 * f1.dot(E21);  // B00
-  psiB[1] = d1.dot(S1) + f1.dot(E11) + 0.5 * f0.dot(E21);  // B01
-  psiB[2] = d2.dot(S0) + f0.dot(E02) + 0.5 * f1.dot(E22);  // B10
-  psiB[3] = d2.dot(S1) + f1.dot(E12) + 0.5 * f0.dot(E22);  // B11
-  // α̃_a = α_a / (Ā dt²): the compliance part is summed per group later (deterministic order);
-  // the area part goes to the rest coordinates through ∂Ā/∂u.
-  double Abar = 0.0;
+  const V al = S.control().stretch_compliance.row(m.tri_group[t]).transpose();
+  const V at = al / (area * dt2);
+  const V lm = lam.row(t).transpose();
+  Eigen::Matrix3d A;
+  A(0, 0) = s00 * ff00 + at[0];
+  A(1, 1) = s11 * ff11 + at[1];
+  A(2, 2) = 0.25 * (s00 * ff11 + 2.0 * s01 * ff01 + s11 * ff00) + at[2];
+  A(0, 1) = A(1, 0) = s01 * ff01;
+  A(0, 2) = A(2, 0) = 0.5 * (s00 * ff01 + s01 * ff00);
+  A(1, 2) = A(2, 1) = 0.5 * (s01 * ff11 + s11 * ff01);
+  const Eigen::Matrix3d Ainv = A.inverse();  // SPD 3×3, closed form as in the forward projection
+  const V dl = -(Ainv * (C + at.cwiseProduct(lm)));
+  const V dlbar = V(f0.dot(sg0), f1.dot(sg1), 0.5 * (f1.dot(sg0) + f0.dot(sg1))) + a.lam_tri.row(t).transpose();
+  const V u = Ainv * dlbar;
+  const Eigen::Matrix3d M = -(u * dl.transpose() + dl * u.transpose());
+  const V Cbar = -u;
+  V U[3], W[3];
   for (int q = 0; q < 3; ++q) {
-    a.tri_sc(t, q) = r.atbar[q] / (area * dt2);
-    Abar -= r.atbar[q] * al[q] / (area * area * dt2);
+    U[q] = M(q, 0) * f0 + 0.5 * M(q, 2) * f1;
+    W[q] = M(q, 1) * f1 + 0.5 * M(q, 2) * f0;
   }
-  const Eigen::Matrix<double, 6, 1> zu = a.rd->dB[t].transpose() * psiB + Abar * a.rd->dA[t];
-  for (int k = 0; k < 3; ++k) {
-    int i = vi[k];
-    a.x.row(i) += zx.segment<3>(3 * k).transpose();
-    a.g.rest.row(i) += zu.segment<2>(2 * k).transpose();
+  const V P0 = dl[0] * sg0 + s00 * U[0] + s01 * W[0], P1 = dl[1] * sg1 + s01 * U[1] + s11 * W[1];
+  const V Q0 = dl[2] * sg0 + s00 * U[2] + s01 * W[2], Q1 = dl[2] * sg1 + s01 * U[2] + s11 * W[2];
+  const V S0 = Cbar[0] * f0 + 0.5 * Cbar[2] * f1 + P0 + 0.5 * Q1;
+  const V S1 = Cbar[1] * f1 + 0.5 * Cbar[2] * f0 + P1 + 0.5 * Q0;
+  // E_aj = Ḡ_aj − Ḡ_a0 (j = 1, 2)
+  auto E = [&](int q, int j) -> V {
+    return dl[q] * (sv[j] - sv[0]) + (w[j] * c0[j] - w[0] * c0[0]) * U[q] + (w[j] * c1[j] - w[0] * c1[0]) * W[q];
+  };
+  const V E01 = E(0, 1), E02 = E(0, 2), E11 = E(1, 1), E12 = E(1, 2), E21 = E(2, 1), E22 = E(2, 2);
+  a.tri_B(t, 0) += d1.dot(S0) + f0.dot(E01) + 0.5 * f1.dot(E21);  // B00
+  a.tri_B(t, 1) += d1.dot(S1) + f1.dot(E11) + 0.5 * f0.dot(E21);  // B01
+  a.tri_B(t, 2) += d2.dot(S0) + f0.dot(E02) + 0.5 * f1.dot(E22);  // B10
+  a.tri_B(t, 3) += d2.dot(S1) + f1.dot(E12) + 0.5 * f0.dot(E22);  // B11
+  // α̃_a = α_a / (Ā dt²): ∂/∂α_a and ∂/∂Ā, summed per triangle (finish_control). Ā's adjoint is
+  // diag(Ā) − u∘λ = −u∘(Δλ + λ).
+  for (int q = 0; q < 3; ++q) {
+    const double atbar = -u[q] * (dl[q] + lm[q]);
+    a.tri_sc(t, q) += atbar / (area * dt2);
+    a.tri_area[t] -= atbar * al[q] / (area * area * dt2);
   }
-  a.lam_tri.row(t) = r.lbar.transpose();
+  for (int k = 0; k < 3; ++k) a.x.row(vi[k]) += (c0[k] * S0 + c1[k] * S1).transpose();
+  a.lam_tri.row(t) -= at.cwiseProduct(u).transpose();  // λ̄ = λ̄' − α̃∘u
 }
 
 // The hinge angle depends on x only (the rest shape enters through the weight w in α̃), so
 // z̄ = Gᵀ C̄ + D(∇θ)[Ḡ]: one tangent through the closed-form ∇θ.
-void reverse_hinge(const XpbdSolver& S, const RowMatX3d& x, const VecXd& lam, int h, double dt2, Adjoints& a) {
+void reverse_hinge(const XpbdSolver& S, const double* rec, const VecXd& lam, int h, double dt2, Adjoints& a) {
   const ClothModel& m = S.model();
-  const ClothControl& c = S.control();
-  const RestCache& rc = S.cache();
-  a.hinge_k[h] = 0.0;
-  double k = c.bend_stiffness[m.hinge_group[h]];
-  double kw = k * rc.hinge_weight[h];
+  double k = S.control().bend_stiffness[m.hinge_group[h]];
+  double kw = k * S.cache().hinge_weight[h];
   if (!(kw > 0.0)) return;
+  const HingeGeom geo(rec);
+  if (!geo.ok) return;
   int vi[4];
-  V3<double> xd[4];
   Eigen::Matrix<double, 12, 1> w, xb;
+  Eigen::Matrix<double, 1, 12> G;
   for (int q = 0; q < 4; ++q) {
     int i = vi[q] = m.hinges(h, q);
-    xd[q] = val3(x, i);
     w.segment<3>(3 * q).setConstant(m.inv_mass[i]);
     xb.segment<3>(3 * q) = a.x.row(i).transpose();
+    G.segment<3>(3 * q) = geo.g[q].transpose();
   }
-  double th;
-  V3<double> gd[4];
-  if (!dihedral_cg(xd[0], xd[1], xd[2], xd[3], &th, gd)) return;
   Eigen::Matrix<double, 1, 1> C, at, lm, lb;
-  C[0] = th - m.hinge_rest_angle[h];
-  Eigen::Matrix<double, 1, 12> G;
-  for (int q = 0; q < 4; ++q) G.segment<3>(3 * q) << gd[q].x, gd[q].y, gd[q].z;
+  C[0] = rec[12] - m.hinge_rest_angle[h];
   at[0] = 1.0 / (kw * dt2);
   lm[0] = lam[h];
   lb[0] = a.lam_hinge[h];
   auto r = block_adjoint<1, 12>(C, G, w, at, lm, false, xb, lb);
-  using D = Dual<1>;
-  V3<D> xs[4];
-  for (int q = 0; q < 4; ++q) {
-    xs[q] = {D(xd[q].x), D(xd[q].y), D(xd[q].z)};
-    xs[q].x.g[0] = r.Gbar(0, 3 * q);
-    xs[q].y.g[0] = r.Gbar(0, 3 * q + 1);
-    xs[q].z.g[0] = r.Gbar(0, 3 * q + 2);
-  }
-  D thj;
-  V3<D> gj[4];
-  dihedral_cg(xs[0], xs[1], xs[2], xs[3], &thj, gj);
+  Eigen::Vector3d gt[4];
+  geo.tangent(r.Gbar.data(), gt);
   // α̃ = 1/(k w dt²): ∂α̃/∂k = −α̃/k, ∂α̃/∂w = −α̃/w
-  a.hinge_k[h] = -r.atbar[0] * at[0] / k;
-  double wbar = -r.atbar[0] * at[0] / a.rd->w[h];
-  for (int q = 0; q < 4; ++q) {
-    int i = vi[q];
-    a.x.row(i) += (r.Cbar[0] * G.segment<3>(3 * q) + Eigen::RowVector3d(gj[q].x.g[0], gj[q].y.g[0], gj[q].z.g[0]));
-    a.g.rest.row(i) += wbar * a.rd->dw[h].segment<2>(2 * q).transpose();
-  }
+  a.hinge_k[h] -= r.atbar[0] * at[0] / k;
+  a.hinge_w[h] -= r.atbar[0] * at[0] / a.rd->w[h];
+  for (int q = 0; q < 4; ++q) a.x.row(vi[q]) += (r.Cbar[0] * geo.g[q] + gt[q]).transpose();
   a.lam_hinge[h] = r.lbar[0];
 }
 
 // Seams: C = x_i − x_j is linear (no Hessian term): z̄ = Jᵀ C̄.
-void reverse_seam(const XpbdSolver& S, const RowMatX3d& x, const RowMatX3d& lam, int sidx, double dt2, Adjoints& a) {
+void reverse_seam(const XpbdSolver& S, const double* rec, const RowMatX3d& lam, int sidx, double dt2, Adjoints& a) {
   const ClothModel& m = S.model();
   int i = m.seams(sidx, 0), j = m.seams(sidx, 1);
-  Eigen::Vector3d C = (x.row(i) - x.row(j)).transpose();
+  const Eigen::Vector3d C = Eigen::Map<const Eigen::Vector3d>(rec) - Eigen::Map<const Eigen::Vector3d>(rec + 3);
   Eigen::Matrix<double, 3, 6> G;
   G.leftCols<3>().setIdentity();
   G.rightCols<3>() = -Eigen::Matrix3d::Identity();
@@ -303,7 +308,7 @@ void reverse_seam(const XpbdSolver& S, const RowMatX3d& x, const RowMatX3d& lam,
   a.lam_seam.row(sidx) = r.lbar.transpose();
 }
 
-void reverse_contact(const XpbdSolver& S, const RowMatX3d& x, const VecXd& lam, const Contact& ct, int ci,
+void reverse_contact(const XpbdSolver& S, const double* rec, const VecXd& lam, const Contact& ct, int ci,
                      double dt2, Adjoints& a) {
   const ClothModel& m = S.model();
   const ClothControl& c = S.control();
@@ -311,7 +316,7 @@ void reverse_contact(const XpbdSolver& S, const RowMatX3d& x, const VecXd& lam, 
   int bi[3];
   for (int q = 0; q < 3; ++q) bi[q] = m.body_faces(ct.tri, q);
   V3<double> nd;
-  double Cd = contact_cg(val3(x, ct.vertex), val3(B, bi[0]), val3(B, bi[1]), val3(B, bi[2]), m.thickness, &nd);
+  double Cd = contact_cg(val3(rec), val3(B, bi[0]), val3(B, bi[1]), val3(B, bi[2]), m.thickness, &nd);
   Eigen::Matrix<double, 1, 1> C, at, lm, lb;
   C[0] = Cd;
   Eigen::Matrix<double, 1, 3> G(nd.x, nd.y, nd.z);
@@ -324,7 +329,7 @@ void reverse_contact(const XpbdSolver& S, const RowMatX3d& x, const VecXd& lam, 
   // ψ = C̄ C + Ḡ·n̂ = n̂·v − C̄ h with v = C̄ (p − b0) + Ḡ: ∂ψ/∂p = C̄ n̂ (∇_p C = n̂ is constant in
   // p); through n = e1 × e2 (e1 = b1 − b0, e2 = b2 − b0): y = ∂(n̂·v)/∂n = (v − n̂ (n̂·v))/|n|,
   // ∂/∂b1 = e2 × y, ∂/∂b2 = y × e1, ∂/∂b0 = −(∂/∂b1 + ∂/∂b2) − C̄ n̂.
-  const Eigen::Vector3d pv = x.row(ct.vertex).transpose();
+  const Eigen::Vector3d pv = Eigen::Map<const Eigen::Vector3d>(rec);
   const Eigen::Vector3d b0 = B.row(bi[0]).transpose(), e1 = B.row(bi[1]).transpose() - b0,
                         e2 = B.row(bi[2]).transpose() - b0;
   const Eigen::Vector3d n = e1.cross(e2);
@@ -341,59 +346,43 @@ void reverse_contact(const XpbdSolver& S, const RowMatX3d& x, const VecXd& lam, 
   a.lam_contact[ci] = r.lbar[0];
 }
 
-/// Reverses the projections of one block (constraints of one kind sharing no vertex), in
-/// parallel when `parallel` and the block is large. Writes only the block's vertices' rows and
-/// its own per-constraint entries; the per-group material sums are formed by accumulate().
-void reverse_block(const XpbdSolver& S, const RowMatX3d& x, const SweepLambda& lam, const SweepBlock& b, double dt2,
+/// Reverses the projections of one block (constraints of one kind sharing no vertex) from its
+/// records (`rec`, sim/sweep_tape.hpp), in parallel when `parallel` and the block is large. Writes
+/// only the block's vertices' rows and its own per-constraint entries.
+void reverse_block(const XpbdSolver& S, const double* rec, const SweepLambda& lam, const SweepBlock& b, double dt2,
                    Adjoints& a, bool parallel) {
   const int n = static_cast<int>(b.idx.size());
   const bool par = parallel && n >= kReverseParallelMin;
+  const int st = record_stride(b.kind);
   if (b.kind == ConstraintKind::kStretch) {
 #pragma omp parallel for schedule(static) if (par)
-    for (int j = 0; j < n; ++j) reverse_tri(S, x, lam.tri, b.idx[j], dt2, a);
+    for (int j = 0; j < n; ++j) reverse_tri(S, rec + j * st, lam.tri, b.idx[j], dt2, a);
   } else if (b.kind == ConstraintKind::kBending) {
 #pragma omp parallel for schedule(static) if (par)
-    for (int j = 0; j < n; ++j) reverse_hinge(S, x, lam.hinge, b.idx[j], dt2, a);
+    for (int j = 0; j < n; ++j) reverse_hinge(S, rec + j * st, lam.hinge, b.idx[j], dt2, a);
   } else {
 #pragma omp parallel for schedule(static) if (par)
-    for (int j = 0; j < n; ++j) reverse_seam(S, x, lam.seam, b.idx[j], dt2, a);
+    for (int j = 0; j < n; ++j) reverse_seam(S, rec + j * st, lam.seam, b.idx[j], dt2, a);
   }
 }
 
-/// Adds a reversed block's per-constraint material adjoints to the per-group sums, in block
-/// order, so the result does not depend on the thread count.
-void accumulate(const ClothModel& m, const SweepBlock& b, Adjoints& a) {
-  if (b.kind == ConstraintKind::kStretch) {
-    for (int t : b.idx)
-      for (int q = 0; q < 3; ++q) a.g.stretch_compliance(m.tri_group[t], q) += a.tri_sc(t, q);
-  } else if (b.kind == ConstraintKind::kBending) {
-    for (int h : b.idx) a.g.bend_stiffness[m.hinge_group[h]] += a.hinge_k[h];
-  }
-}
-
-/// Reverses one sweep from the positions before each of its blocks (`sw`, by plan slot): the
-/// contacts (serial: they share body vertices), the interface, then the lanes — concurrently in
-/// the lane plan, each lane's blocks in reverse order, their material sums afterwards in a fixed
+/// Reverses one sweep from its records (`sw`): the contacts (serial: they share body vertices),
+/// the interface, then the lanes — concurrently in the lane plan, each lane's blocks in reverse
 /// order.
 void reverse_sweep(const XpbdSolver& S, const SweepTape& sw, const SweepLambda& lam,
                    const std::vector<Contact>& contacts, double dt, Adjoints& a) {
-  const ClothModel& m = S.model();
   const SweepPlan& plan = S.sweep_plan();
+  const SweepTapeLayout& L = S.tape_layout();
   const double dt2 = dt * dt;
-  const int nslots = plan.num_slots(), base = plan.max_lane_blocks();
-  const RowMatX3d& xc = sw.x_before[nslots - 1];
+  const double* rec = sw.rec.data();
   for (int ci = 0; ci < static_cast<int>(contacts.size()); ++ci)  // independent: any order
-    reverse_contact(S, xc, lam.contact, contacts[ci], ci, dt2, a);
-  for (int k = static_cast<int>(plan.interface.size()) - 1; k >= 0; --k) {
-    reverse_block(S, sw.x_before[base + k], lam, plan.interface[k], dt2, a, true);
-    accumulate(m, plan.interface[k], a);
-  }
+    reverse_contact(S, sw.contact.data() + 3 * ci, lam.contact, contacts[ci], ci, dt2, a);
+  for (int k = static_cast<int>(plan.interface.size()) - 1; k >= 0; --k)
+    reverse_block(S, rec + L.interface[k], lam, plan.interface[k], dt2, a, true);
   if (!plan.lane_parallel()) {
     const auto& blocks = plan.lanes[0];
-    for (int k = static_cast<int>(blocks.size()) - 1; k >= 0; --k) {
-      reverse_block(S, sw.x_before[k], lam, blocks[k], dt2, a, true);
-      accumulate(m, blocks[k], a);
-    }
+    for (int k = static_cast<int>(blocks.size()) - 1; k >= 0; --k)
+      reverse_block(S, rec + L.lane[0][k], lam, blocks[k], dt2, a, true);
     return;
   }
   const int nl = static_cast<int>(plan.lanes.size());
@@ -401,19 +390,14 @@ void reverse_sweep(const XpbdSolver& S, const SweepTape& sw, const SweepLambda& 
   for (int l = 0; l < nl; ++l) {
     const auto& blocks = plan.lanes[l];
     for (int k = static_cast<int>(blocks.size()) - 1; k >= 0; --k)
-      reverse_block(S, sw.x_before[k], lam, blocks[k], dt2, a, false);
+      reverse_block(S, rec + L.lane[l][k], lam, blocks[k], dt2, a, false);
   }
-  for (int l = 0; l < nl; ++l)
-    for (int k = static_cast<int>(plan.lanes[l].size()) - 1; k >= 0; --k) accumulate(m, plan.lanes[l][k], a);
 }
 
 // Reverses one recorded step: on entry a.x holds dφ/dx after the step and vbar dφ/dv after it;
-// on exit a.x and vbar hold the adjoints at the step's start. Each sweep is first replayed from
-// its recorded start (positions and multipliers) to recover the positions before every colour
-// pass (one sweep's worth, in `sw`), then reversed pass by pass. The replay uses the solver's
-// contacts, which are those of the step just recorded.
-void reverse_step(XpbdSolver& S, const StepTape& tape, const SimParams& p, Adjoints& a, RowMatX3d& vbar,
-                  SweepTape& sw) {
+// on exit a.x and vbar hold the adjoints at the step's start. The sweeps are reversed from the
+// last, each from its projection records.
+void reverse_step(const XpbdSolver& S, const StepTape& tape, const SimParams& p, Adjoints& a, RowMatX3d& vbar) {
   const ClothModel& m = S.model();
   const int nv = m.num_vertices;
   const double dt = p.dt, decay = std::exp(-p.damping * p.dt);
@@ -429,29 +413,21 @@ void reverse_step(XpbdSolver& S, const StepTape& tape, const SimParams& p, Adjoi
   a.lam_hinge = VecXd::Zero(nh);
   a.lam_seam = RowMatX3d::Zero(ns, 3);
   a.lam_contact = VecXd::Zero(nc);
-  const int nslots = S.sweep_plan().num_slots();
-  if (static_cast<int>(tape.x_sweep.size()) != p.iterations || tape.lambda_sweep.size() != tape.x_sweep.size() ||
-      S.contacts().size() != tape.contacts.size())
+  if (static_cast<int>(tape.sweeps.size()) < p.iterations || tape.lambda_sweep.size() < tape.sweeps.size())
     throw std::logic_error("trajectory adjoint: tape does not match the sweep structure");
-  ClothState q;
   SweepLambda lam;
   for (int it = p.iterations - 1; it >= 0; --it) {
     // Every constraint is projected once per sweep, so the multipliers before its pass are
     // those at the sweep start.
     const VecXd& L = tape.lambda_sweep[it];
-    if (L.size() != 3 * nf + nh + 3 * ns + nc) throw std::logic_error("trajectory adjoint: multiplier tape size");
+    const SweepTape& sw = tape.sweeps[it];
+    if (L.size() != 3 * nf + nh + 3 * ns + nc || sw.rec.size() != S.tape_layout().size ||
+        sw.contact.size() != static_cast<std::size_t>(3 * nc))
+      throw std::logic_error("trajectory adjoint: tape size does not match the model");
     lam.tri = Eigen::Map<const RowMatX3d>(L.data(), nf, 3);
     lam.hinge = L.segment(3 * nf, nh);
     lam.seam = Eigen::Map<const RowMatX3d>(L.data() + 3 * nf + nh, ns, 3);
     lam.contact = L.tail(nc);
-    q.x = tape.x_sweep[it];
-    q.lambda_tri = lam.tri;
-    q.lambda_hinge = lam.hinge;
-    q.lambda_seam = lam.seam;
-    q.lambda_contact = lam.contact;
-    S.sweep(q, dt, &sw);
-    if (static_cast<int>(sw.x_before.size()) != nslots)
-      throw std::logic_error("trajectory adjoint: sweep replay does not match the sweep plan");
     reverse_sweep(S, sw, lam, tape.contacts, dt, a);
   }
   // Prediction: x̃ = x + dt (decay v + dt g) for free vertices; pinned stay.
@@ -460,6 +436,20 @@ void reverse_step(XpbdSolver& S, const StepTape& tape, const SimParams& p, Adjoi
     if (m.inv_mass[i] != 0.0) vb.row(i) = decay * dt * a.x.row(i);
   a.x += xprev_bar;
   vbar = vb;
+}
+
+/// The chain rule from the per-constraint sums to the control: rest coordinates through ∂B/∂u,
+/// ∂Ā/∂u and ∂w/∂u; compliances and stiffnesses summed per group, in index order.
+void finish_control(const ClothModel& m, const RestDerivs& rd, const Adjoints& a, ControlGradient& g) {
+  for (Eigen::Index t = 0; t < m.faces.rows(); ++t) {
+    const Eigen::Matrix<double, 6, 1> zu = rd.dB[t].transpose() * a.tri_B.row(t).transpose() + a.tri_area[t] * rd.dA[t];
+    for (int k = 0; k < 3; ++k) g.rest.row(m.faces(t, k)) += zu.segment<2>(2 * k).transpose();
+    g.stretch_compliance.row(m.tri_group[t]) += a.tri_sc.row(t);
+  }
+  for (Eigen::Index h = 0; h < m.hinges.rows(); ++h) {
+    for (int q = 0; q < 4; ++q) g.rest.row(m.hinges(h, q)) += a.hinge_w[h] * rd.dw[h].segment<2>(2 * q).transpose();
+    g.bend_stiffness[m.hinge_group[h]] += a.hinge_k[h];
+  }
 }
 
 // Checkpoints and segment starts keep positions and velocities only: a step zeroes its
@@ -505,12 +495,15 @@ TrajectoryGradient trajectory_adjoint(XpbdSolver& S, const ClothState& start, co
   a.g.stretch_compliance = RowMatX3d::Zero(m.num_groups, 3);
   a.g.bend_stiffness = VecXd::Zero(m.num_groups);
   a.g.body_vertices = RowMatX3d::Zero(S.control().body_vertices.rows(), 3);
+  a.tri_B.setZero(m.faces.rows(), 4);
+  a.tri_area = VecXd::Zero(m.faces.rows());
   a.tri_sc = RowMatX3d::Zero(m.faces.rows(), 3);
+  a.hinge_w = VecXd::Zero(m.hinges.rows());
+  a.hinge_k = VecXd::Zero(m.hinges.rows());
   const RestDerivs rd(S);
   a.rd = &rd;
-  a.hinge_k = VecXd::Zero(m.hinges.rows());
   double peak = 0.0, base = ckpt.size() * 2 * mb(start.x);
-  SweepTape sw;
+  StepTape tape;  // one step's tape, its buffers reused from step to step
   for (int seg = static_cast<int>(ckpt.size()) - 1; seg >= 0; --seg) {
     int t_begin = seg * k, t_end = std::min(steps, t_begin + k);
     std::vector<PosVel> starts;
@@ -521,19 +514,16 @@ TrajectoryGradient trajectory_adjoint(XpbdSolver& S, const ClothState& start, co
     }
     for (int t = t_end - 1; t >= t_begin; --t) {
       rc.check("trajectory adjoint (backward)");
-      StepTape tape;
       ClothState q = restore(S, starts[t - t_begin]);
       S.step(q, p, &tape);
-      reverse_step(S, tape, p, a, vbar, sw);
-      double tape_mb = 0.0;
-      for (const auto& xs : tape.x_sweep) tape_mb += mb(xs);
-      for (const auto& ls : tape.lambda_sweep) tape_mb += mb(ls);
-      for (const auto& xb : sw.x_before) tape_mb += mb(xb);
+      reverse_step(S, tape, p, a, vbar);
+      const double tape_mb = tape.mb();
       out.step_tape_mb = std::max(out.step_tape_mb, tape_mb);
       peak = std::max(peak, base + starts.size() * 2 * mb(start.x) + tape_mb);
       rc.report({"trajectory backward", 2L * steps - t, 2L * steps, 0.0});
     }
   }
+  finish_control(m, rd, a, a.g);
   out.control = a.g;
   out.x0 = a.x;
   out.v0 = vbar;

@@ -1,12 +1,13 @@
 // Trajectory adjoint (issue 4, mode 1; DiffXPBD, supplement Eq. 1–4): the exact reverse pass of
-// `steps` XPBD steps. Each step is replayed forward from its start state while recording the
-// positions and multipliers at the start of every sweep (StepTape); then, sweep by sweep from
-// the last, the sweep is replayed to recover the positions before each colour pass (SweepTape)
-// and every projection is reversed (adjoint/projection_vjp.hpp), colour by colour, the
-// constraints of one colour in parallel. Memory is bounded
-// by checkpointing: the forward pass keeps the state every `checkpoint_every` steps; the
-// backward pass recomputes one segment at a time. Contacts are detected in each replayed step
-// exactly as in the forward pass (their selection is not differentiated).
+// `steps` XPBD steps. Each step is replayed forward from its start state while recording every
+// projection's inputs (StepTape: the multipliers at each sweep's start and, per projection in
+// plan order, the positions it read and a hinge's angle; sim/sweep_tape.hpp); then the sweeps
+// are reversed from the last, projection by projection (adjoint/projection_vjp.hpp), reading the
+// records sequentially, in the sweep plan's blocks (parallel as in the forward sweep). Memory is
+// bounded by checkpointing: the forward pass keeps the state every `checkpoint_every` steps; the
+// backward pass recomputes one segment at a time and holds one step's tape. Contacts are
+// detected in each replayed step exactly as in the forward pass (their selection is not
+// differentiated).
 #pragma once
 #include "common/run_control.hpp"
 #include "sim/cloth_energy.hpp"
@@ -20,7 +21,7 @@ struct TrajectoryGradient {
   RowMatX3d v0;             // dφ/dv at the start (per m/s)
   RowMatX3d x_final;        // positions after the steps (m)
   double peak_tape_mb = 0;  // checkpoints + one segment's step starts + one step's tape
-  double step_tape_mb = 0;  // the largest one step's tape (sweep starts + one sweep's passes)
+  double step_tape_mb = 0;  // the largest one step's tape (multipliers + projection records)
   double wall_s = 0;
 };
 

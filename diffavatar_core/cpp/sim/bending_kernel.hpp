@@ -61,10 +61,13 @@ inline bool dihedral_gradient(const Vec3& a, const Vec3& b, const Vec3& c, const
 }
 
 /// One XPBD projection of a hinge: Δλ = −(C + α̃λ)/(Σ w_k|∇_k C|² + α̃), Δx_k = w_k ∇_k C Δλ.
-inline void project_bending(Vec3* p[4], const double w[4], double theta0, double alpha_tilde, double* lambda) {
+/// theta_out (or null) receives the measured θ (rad) for the adjoint's tape.
+inline void project_bending(Vec3* p[4], const double w[4], double theta0, double alpha_tilde, double* lambda,
+                            double* theta_out = nullptr) {
   double th;
   Vec3 g[4];
   if (!dihedral_gradient(*p[0], *p[1], *p[2], *p[3], &th, g)) return;
+  if (theta_out) *theta_out = th;
   double C = th - theta0;
   double denom = alpha_tilde;
   for (int k = 0; k < 4; ++k) denom += w[k] * g[k].squaredNorm();

@@ -18,6 +18,7 @@ constexpr int kParallelMin = 1024;
 
 XpbdSolver::XpbdSolver(ClothModel model, ClothControl control) : model_(std::move(model)) {
   plan_ = build_sweep_plan(model_, SweepPlanParams());
+  layout_ = sweep_tape_layout(plan_);
   collider_ = BodyCollider(control.body_vertices, model_.body_faces);
   set_control(std::move(control));
 }
@@ -47,11 +48,12 @@ void XpbdSolver::detect_contacts(const RowMatX3d& x, const SimParams& p) {
 void XpbdSolver::set_sweep_plan(const SweepPlanParams& p) {
   if (p.min_constraints < 0) throw std::invalid_argument("sweep plan: min_constraints must be >= 0");
   plan_ = build_sweep_plan(model_, p);
+  layout_ = sweep_tape_layout(plan_);
 }
 
 // Projects constraint c of `kind` (Eq. 1–2): reads and writes only its own vertices' rows of x
 // and its own multipliers.
-void XpbdSolver::project(ConstraintKind kind, int c, RowMatX3d& x, ClothState& s, double dt2) const {
+void XpbdSolver::project(ConstraintKind kind, int c, RowMatX3d& x, ClothState& s, double dt2, double* rec) const {
   const ClothModel& m = model_;
   if (kind == ConstraintKind::kStretch) {
     Vec3 p[3];
@@ -63,6 +65,8 @@ void XpbdSolver::project(ConstraintKind kind, int c, RowMatX3d& x, ClothState& s
       pp[k] = &p[k];
       w[k] = m.inv_mass[i];
     }
+    if (rec)
+      for (int k = 0; k < 3; ++k) Eigen::Map<Vec3>(rec + 3 * k) = p[k];
     Vec3 at = control_.stretch_compliance.row(m.tri_group[c]).transpose() / (cache_.tri[c].area * dt2);
     project_stretch(pp, w, cache_.tri[c], at, &s.lambda_tri(c, 0));
     for (int k = 0; k < 3; ++k) x.row(m.faces(c, k)) = p[k].transpose();
@@ -78,39 +82,42 @@ void XpbdSolver::project(ConstraintKind kind, int c, RowMatX3d& x, ClothState& s
       pp[q] = &p[q];
       w[q] = m.inv_mass[i];
     }
-    project_bending(pp, w, m.hinge_rest_angle[c], 1.0 / (kw * dt2), &s.lambda_hinge[c]);
+    if (rec)
+      for (int q = 0; q < 4; ++q) Eigen::Map<Vec3>(rec + 3 * q) = p[q];
+    project_bending(pp, w, m.hinge_rest_angle[c], 1.0 / (kw * dt2), &s.lambda_hinge[c], rec ? rec + 12 : nullptr);
     for (int q = 0; q < 4; ++q) x.row(m.hinges(c, q)) = p[q].transpose();
   } else {
     int a = m.seams(c, 0), b = m.seams(c, 1);
     Vec3 xa = x.row(a).transpose(), xb = x.row(b).transpose();
+    if (rec) {
+      Eigen::Map<Vec3>{rec} = xa;
+      Eigen::Map<Vec3>(rec + 3) = xb;
+    }
     project_seam(xa, xb, m.inv_mass[a], m.inv_mass[b], m.seam_compliance / dt2, &s.lambda_seam(c, 0));
     x.row(a) = xa.transpose();
     x.row(b) = xb.transpose();
   }
 }
 
-namespace {
-void copy_rows(const RowMatX3d& from, RowMatX3d& to, const std::vector<int>& rows) {
-  for (int i : rows) to.row(i) = from.row(i);
-}
-}  // namespace
-
 void XpbdSolver::sweep(ClothState& s, double dt, SweepTape* tape) {
   const ClothModel& m = model_;
   const double dt2 = dt * dt;
   RowMatX3d& x = s.x;
-  const int nslots = plan_.num_slots(), base = plan_.max_lane_blocks();
-  if (tape) {
-    tape->x_before.resize(nslots);
-    for (auto& xb : tape->x_before)
-      if (xb.rows() != x.rows()) xb.setZero(x.rows(), 3);  // once: later sweeps overwrite in place
-  }
   const int nc = static_cast<int>(contacts_.size());
+  if (tape) {
+    tape->rec.resize(layout_.size);  // reused across sweeps and steps: no reallocation
+    tape->contact.resize(3 * static_cast<std::size_t>(nc));
+  }
+  // Record pointer of a block's j-th projection, or null without a tape.
+  auto rec = [&](std::size_t off, const SweepBlock& b, int j) -> double* {
+    return tape ? tape->rec.data() + off + static_cast<std::size_t>(j) * record_stride(b.kind) : nullptr;
+  };
   if (s.lambda_contact.size() != nc) s.lambda_contact = VecXd::Zero(nc);
   const double ac = 1.0 / (m.contact_stiffness * dt2);
   auto contact = [&](int j) {
     const Contact& ct = contacts_[j];
     Vec3 pi = x.row(ct.vertex).transpose();
+    if (tape) Eigen::Map<Vec3>(tape->contact.data() + 3 * j) = pi;
     project_contact(pi, m.inv_mass[ct.vertex], collider_.normal(ct.tri), collider_.vertex(ct.tri, 0), m.thickness, ac,
                     &s.lambda_contact[j]);
     x.row(ct.vertex) = pi.transpose();
@@ -119,13 +126,12 @@ void XpbdSolver::sweep(ClothState& s, double dt, SweepTape* tape) {
     // Colour plan: one fork/join per colour large enough to pay for it.
     const auto& blocks = plan_.lanes[0];
     for (std::size_t k = 0; k < blocks.size(); ++k) {
-      if (tape) tape->x_before[k] = x;
       const SweepBlock& b = blocks[k];
+      const std::size_t off = layout_.lane[0][k];
       const int n = static_cast<int>(b.idx.size());
 #pragma omp parallel for schedule(static) if (n >= kParallelMin)
-      for (int j = 0; j < n; ++j) project(b.kind, b.idx[j], x, s, dt2);
+      for (int j = 0; j < n; ++j) project(b.kind, b.idx[j], x, s, dt2, rec(off, b, j));
     }
-    if (tape) tape->x_before[nslots - 1] = x;
 #pragma omp parallel for schedule(static) if (nc >= kParallelMin)
     for (int j = 0; j < nc; ++j) contact(j);
     return;
@@ -138,28 +144,37 @@ void XpbdSolver::sweep(ClothState& s, double dt, SweepTape* tape) {
     for (int l = 0; l < nl; ++l) {
       const auto& blocks = plan_.lanes[l];
       for (std::size_t k = 0; k < blocks.size(); ++k) {
-        if (tape) copy_rows(x, tape->x_before[k], plan_.lane_vertices[l]);
-        for (int c : blocks[k].idx) project(blocks[k].kind, c, x, s, dt2);
+        const SweepBlock& b = blocks[k];
+        const std::size_t off = layout_.lane[l][k];
+        const int n = static_cast<int>(b.idx.size());
+        for (int j = 0; j < n; ++j) project(b.kind, b.idx[j], x, s, dt2, rec(off, b, j));
       }
     }
 #pragma omp single
     {
       for (std::size_t k = 0; k < plan_.interface.size(); ++k) {
-        if (tape) copy_rows(x, tape->x_before[base + k], plan_.interface_vertices);
-        for (int c : plan_.interface[k].idx) project(plan_.interface[k].kind, c, x, s, dt2);
+        const SweepBlock& b = plan_.interface[k];
+        const std::size_t off = layout_.interface[k];
+        const int n = static_cast<int>(b.idx.size());
+        for (int j = 0; j < n; ++j) project(b.kind, b.idx[j], x, s, dt2, rec(off, b, j));
       }
-      if (tape) tape->x_before[nslots - 1] = x;
     }
 #pragma omp for schedule(static)
     for (int j = 0; j < nc; ++j) contact(j);
   }
 }
 
+double StepTape::mb() const {
+  double d = (x_start.size() + v_start.size()) * 8.0 / 1048576.0;
+  for (const auto& l : lambda_sweep) d += l.size() * 8.0 / 1048576.0;
+  for (const auto& sw : sweeps) d += sw.mb();
+  return d;
+}
+
 double XpbdSolver::step(ClothState& s, const SimParams& p, StepTape* tape) {
   const ClothModel& m = model_;
   const int nv = m.num_vertices;
   if (tape) {
-    *tape = StepTape();
     tape->x_start = s.x;
     tape->v_start = s.v;
   }
@@ -181,22 +196,21 @@ double XpbdSolver::step(ClothState& s, const SimParams& p, StepTape* tape) {
   s.lambda_contact = VecXd::Zero(contacts_.size());
   if (tape) tape->contacts = contacts_;
   if (tape) {
-    tape->x_sweep.reserve(p.iterations);
-    tape->lambda_sweep.reserve(p.iterations);
+    tape->lambda_sweep.resize(p.iterations);
+    tape->sweeps.resize(p.iterations);
   }
   const Eigen::Index nt = s.lambda_tri.size(), nh = s.lambda_hinge.size(), ns = s.lambda_seam.size();
   for (int it = 0; it < p.iterations; ++it) {
     if (tape) {
-      tape->x_sweep.push_back(s.x);
       const Eigen::Index nc = s.lambda_contact.size();
-      VecXd l(nt + nh + ns + nc);
+      VecXd& l = tape->lambda_sweep[it];
+      l.resize(nt + nh + ns + nc);
       l.head(nt) = Eigen::Map<const VecXd>(s.lambda_tri.data(), nt);
       l.segment(nt, nh) = s.lambda_hinge;
       l.segment(nt + nh, ns) = Eigen::Map<const VecXd>(s.lambda_seam.data(), ns);
       l.tail(nc) = s.lambda_contact;
-      tape->lambda_sweep.push_back(std::move(l));
     }
-    sweep(s, p.dt);
+    sweep(s, p.dt, tape ? &tape->sweeps[it] : nullptr);
   }
   double vmax = 0.0;
   for (int i = 0; i < nv; ++i) {

@@ -17,6 +17,7 @@
 #include "sim/cloth_model.hpp"
 #include "sim/cloth_state.hpp"
 #include "sim/sweep_plan.hpp"
+#include "sim/sweep_tape.hpp"
 
 namespace diffavatar {
 
@@ -39,24 +40,17 @@ struct DrapeParams {
   int refine_iterations = 200;  // Newton steps at most (buckled drapes converge linearly for a while: the 2.5 cm t-shirt needed 65)
 };
 
-/// What the trajectory adjoint needs to replay one step backwards: the state at the start of
-/// the step, the positions and the multipliers at the start of every sweep (the multipliers
-/// flattened as [tri (#F×3) | hinge (#H) | seam (#S×3) | contact]) and the contacts. The
-/// positions before each colour pass are not stored: the adjoint recomputes them for one sweep
-/// at a time (SweepTape), so a step's tape is O(iterations × state), not O(projections).
+/// What the trajectory adjoint needs to reverse one step: the state at its start, the
+/// multipliers at the start of every sweep (flattened as [tri (#F×3) | hinge (#H) | seam (#S×3) |
+/// contact]), every sweep's projection records (sim/sweep_tape.hpp) and the contacts. O(iterations
+/// × projections) doubles: about 100 MB per step on a 10k-vertex garment at 20 sweeps; one step's
+/// tape is alive at a time, and step() reuses its buffers.
 struct StepTape {
   RowMatX3d x_start, v_start;
-  std::vector<RowMatX3d> x_sweep;
   std::vector<VecXd> lambda_sweep;
+  std::vector<SweepTape> sweeps;
   std::vector<Contact> contacts;
-};
-
-/// Positions before every block of one sweep, by the slots of the sweep plan
-/// (SweepPlan::num_slots; the last is before the contacts). In the lane plan each lane writes
-/// only its own vertices' rows of a shared slot, the interface only the rows it touches; a block's
-/// reverse reads only the rows of its constraints. Entries are overwritten in place when reused.
-struct SweepTape {
-  std::vector<RowMatX3d> x_before;
+  double mb() const;
 };
 
 struct DrapeReport {
@@ -84,11 +78,13 @@ class XpbdSolver {
   ClothState make_state(const RowMatX3d& x) const;
   /// One XPBD step of length p.dt. Returns the max vertex speed (m/s) after the step.
   double step(ClothState& s, const SimParams& p, StepTape* tape = nullptr);
-  /// One projection sweep over all constraints (the benchmark's unit of work), in plan order.
+  /// One projection sweep over all constraints (the benchmark's unit of work), in plan order;
+  /// with a tape, every projection's inputs are recorded in it (sim/sweep_tape.hpp).
   void sweep(ClothState& s, double dt, SweepTape* tape = nullptr);
   /// Rebuilds the sweep plan (the order of the projections, hence the trajectory's round-off).
   void set_sweep_plan(const SweepPlanParams& p);
   const SweepPlan& sweep_plan() const { return plan_; }
+  const SweepTapeLayout& tape_layout() const { return layout_; }
   DrapeReport drape(ClothState& s, const SimParams& p, const DrapeParams& d, RunControl& rc);
   /// Newton refinement of s.x to ∇ₓE = 0; returns iterations used; sets residual. The anchors
   /// of the friction proxy are set to s.x unless keep_anchor (then the stored ones are reused).
@@ -106,11 +102,13 @@ class XpbdSolver {
   std::vector<int> free_dofs() const;
 
  private:
-  void project(ConstraintKind kind, int c, RowMatX3d& x, ClothState& s, double dt2) const;
+  /// Projects constraint c; `rec` (or null) receives its record (sim/sweep_tape.hpp).
+  void project(ConstraintKind kind, int c, RowMatX3d& x, ClothState& s, double dt2, double* rec) const;
   ClothModel model_;
   ClothControl control_;
   RestCache cache_;
   SweepPlan plan_;
+  SweepTapeLayout layout_;
   BodyCollider collider_;
   std::vector<Contact> contacts_;
   RowMatX3d anchor_;
