@@ -147,9 +147,9 @@ def test_invariants(free_sheet):
 
 def test_progress_cancellation_and_tape_size(free_sheet):
     """Progress is reported (rate-limited, so at least the first event) in 2T units; a cancel
-    raises Cancelled; one step's tape is exactly the step's start state plus, per sweep, the
-    multipliers at its start and one record per projection (sim/sweep_tape.hpp: 9 doubles per
-    triangle, 13 per hinge, 6 per seam; this sheet has no body, so no contacts)."""
+    raises Cancelled; one step's tape is exactly one record per projection of each of its sweeps
+    (sim/sweep_tape.hpp: positions read and λ before it — 12 doubles per triangle, 14 per hinge
+    with its angle, 9 per seam; this sheet has no body, so no contacts)."""
     from diffavatar_core import CancelToken, Cancelled
     cloth, W, start, g = free_sheet
     seen = []
@@ -164,7 +164,7 @@ def test_progress_cancellation_and_tape_size(free_sheet):
     with pytest.raises(Cancelled):
         trajectory_gradient(cloth, T, W, progress=progress, cancel=token, **KW)
     m = cloth.model
-    nv, nf, nh, ns = m.num_vertices, len(m.faces), len(m.hinges), len(m.seams)
-    per_sweep = (3 * nf + nh + 3 * ns) + (9 * nf + 13 * nh + 6 * ns)
-    assert g["step_tape_mb"] == pytest.approx((6 * nv + KW["iterations"] * per_sweep) * 8 / 2**20, rel=1e-12)
+    nf, nh, ns = len(m.faces), len(m.hinges), len(m.seams)
+    per_sweep = 12 * nf + 14 * nh + 9 * ns
+    assert g["step_tape_mb"] == pytest.approx(KW["iterations"] * per_sweep * 8 / 2**20, rel=1e-12)
     assert g["peak_tape_mb"] >= g["step_tape_mb"]

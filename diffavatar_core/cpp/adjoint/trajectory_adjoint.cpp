@@ -135,33 +135,94 @@ struct RestDerivs {
   }
 };
 
-struct Adjoints {
-  const RestDerivs* rd = nullptr;
-  RowMatX3d x;        // adjoint of positions
-  RowMatX3d lam_tri;  // adjoints of the multipliers of the current step
-  VecXd lam_hinge;
-  RowMatX3d lam_seam;
-  VecXd lam_contact;
-  ControlGradient g;  // control gradient (body vertices directly; the rest in finish_control)
-  // Per-constraint sums over every projection of the trajectory. The rest shape and the material
-  // enter a projection only through these per-constraint quantities, and the control is fixed
-  // during the call, so their chain rule to u, α and k is applied once at the end
-  // (finish_control) instead of once per projection; each constraint is reversed by one thread
-  // per sweep, so the sums do not depend on the thread count.
-  Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor> tri_B;  // ∂φ/∂(B00, B01, B10, B11), B = D̄⁻¹
-  VecXd tri_area;                                                  // ∂φ/∂Ā (m⁻² · φ)
-  RowMatX3d tri_sc;                                                // ∂φ/∂α (warp, weft, shear)
-  VecXd hinge_w;                                                   // ∂φ/∂w (hinge weight)
-  VecXd hinge_k;                                                   // ∂φ/∂k
+/// Per-constraint constants of the reverse pass, stored by position (sim/sweep_tape.hpp: the
+/// constraint's rank in plan order) so that a sweep's reverse reads them sequentially, like its
+/// records. Measured on the 10k t-shirt: loading them by constraint index (scattered) was about
+/// a third of the stretch reverse.
+struct TriConst {
+  int v[3];
+  int tri;
+  double w[3];    // inverse masses (1/kg)
+  double B[4];    // B = D̄⁻¹ in the grain frame, as (B00, B01, B10, B11) (1/m)
+  double at[3];   // α̃ = α/(Ā dt²)
+  double area;    // Ā (m²)
+};
+struct HingeConst {
+  int v[4];
+  int hinge;
+  double w[4];
+  double k;       // bending stiffness of its group (N·m)
+  double kw;      // k times the rest weight; ≤ 0: the forward sweep skips the hinge
+  double theta0;  // rest angle (rad)
 };
 
-/// Multipliers at the start of a sweep, all constraint kinds.
-struct SweepLambda {
-  RowMatX3d tri;
-  VecXd hinge;
-  RowMatX3d seam;
-  VecXd contact;
+struct Adjoints {
+  RowMatX3d x;        // adjoint of positions
+  RowMatX3d xprev, vnext;  // work buffers of reverse_step (reused: no allocation per step)
+  RowMatX3d lam_tri;  // adjoints of the multipliers of the current step, by position
+  VecXd lam_hinge;    // by position
+  RowMatX3d lam_seam; // by seam index
+  VecXd lam_contact;  // by contact index
+  ControlGradient g;  // control gradient (body vertices directly; the rest in finish_control)
+  // Per-position sums over every projection of the trajectory. The rest shape and the material
+  // enter a projection only through these per-constraint quantities, and the control is fixed
+  // during the call, so their chain rule to u, α and k is applied once at the end
+  // (finish_control) instead of once per projection; each position is reversed by one thread per
+  // sweep, so the sums do not depend on the thread count.
+  Eigen::Matrix<double, Eigen::Dynamic, 8, Eigen::RowMajor> tri_acc;    // ∂φ/∂(B00, B01, B10, B11), ∂φ/∂Ā, ∂φ/∂α (3)
+  Eigen::Matrix<double, Eigen::Dynamic, 2, Eigen::RowMajor> hinge_acc;  // ∂φ/∂k, ∂φ/∂(k w)·k (see reverse_hinge)
+  std::vector<TriConst> tri;
+  std::vector<HingeConst> hinge;
 };
+
+/// Calls f(kind, block, first position, record offset) for every block in plan order.
+template <class F>
+void for_each_block(const SweepPlan& plan, const SweepTapeLayout& L, F f) {
+  for (std::size_t l = 0; l < plan.lanes.size(); ++l)
+    for (std::size_t k = 0; k < plan.lanes[l].size(); ++k) f(plan.lanes[l][k], L.lane_first[l][k], L.lane[l][k]);
+  for (std::size_t k = 0; k < plan.interface.size(); ++k) f(plan.interface[k], L.interface_first[k], L.interface[k]);
+}
+
+void build_constants(const XpbdSolver& S, double dt2, Adjoints& a) {
+  const ClothModel& m = S.model();
+  const ClothControl& c = S.control();
+  const RestCache& rc = S.cache();
+  const SweepTapeLayout& L = S.tape_layout();
+  if (L.count[0] != m.faces.rows() || L.count[1] != m.hinges.rows() || L.count[2] != m.seams.rows())
+    throw std::logic_error("trajectory adjoint: the sweep plan does not project every constraint once");
+  a.tri.resize(L.count[0]);
+  a.hinge.resize(L.count[1]);
+  for_each_block(S.sweep_plan(), L, [&](const SweepBlock& b, int first, std::size_t) {
+    for (std::size_t j = 0; j < b.idx.size(); ++j) {
+      const int id = b.idx[j];
+      if (b.kind == ConstraintKind::kStretch) {
+        TriConst& K = a.tri[first + j];
+        K.tri = id;
+        for (int q = 0; q < 3; ++q) {
+          K.v[q] = m.faces(id, q);
+          K.w[q] = m.inv_mass[K.v[q]];
+        }
+        const Eigen::Matrix2d& B = rc.tri[id].B;
+        K.B[0] = B(0, 0);
+        K.B[1] = B(0, 1);
+        K.B[2] = B(1, 0);
+        K.B[3] = B(1, 1);
+        K.area = rc.tri[id].area;
+        for (int q = 0; q < 3; ++q) K.at[q] = c.stretch_compliance(m.tri_group[id], q) / (K.area * dt2);
+      } else if (b.kind == ConstraintKind::kBending) {
+        HingeConst& K = a.hinge[first + j];
+        K.hinge = id;
+        for (int q = 0; q < 4; ++q) {
+          K.v[q] = m.hinges(id, q);
+          K.w[q] = m.inv_mass[K.v[q]];
+        }
+        K.k = c.bend_stiffness[m.hinge_group[id]];
+        K.kw = K.k * rc.hinge_weight[id];
+        K.theta0 = m.hinge_rest_angle[id];
+      }
+    }
+  });
+}
 
 // z̄ = ∇_z ψ (projection_vjp.hpp) in closed form, using the block's structure instead of its
 // 3×9 matrices. With f0 = D B e0, f1 = D B e1 (B = D̄⁻¹) the rows of G = ∂C/∂x are, per corner k,
@@ -176,23 +237,17 @@ struct SweepLambda {
 //   R0 = P0 + ½Q1, R1 = P1 + ½Q0 with P0 = Σ c0_k Ḡ_0k, P1 = Σ c1_k Ḡ_1k, Q0 = Σ c0_k Ḡ_2k,
 //   Q1 = Σ c1_k Ḡ_2k; ∂ψ/∂B through ∂f0 = d1 ∂B00 + d2 ∂B10, ∂f1 = d1 ∂B01 + d2 ∂B11 and
 //   ∂(Σ_k c_k V_k)/∂B = V_1 − V_0 or V_2 − V_0 (E_a1, E_a2). The rest coordinates follow from
-//   ∂ψ/∂B and ∂ψ/∂Ā in finish_control.
-void reverse_tri(const XpbdSolver& S, const double* rec, const RowMatX3d& lam, int t, double dt2, Adjoints& a) {
+//   ∂ψ/∂B and ∂ψ/∂Ā in finish_control. `rec`: 3 corners, λ (sim/sweep_tape.hpp); `acc`, `lbar`:
+//   this position's sums and multiplier adjoint.
+void reverse_tri(const TriConst& K, const double* rec, double dt2, double* acc, double* lbar, RowMatX3d& ax) {
   using V = Eigen::Vector3d;
-  const ClothModel& m = S.model();
-  const RestCache& rc = S.cache();
-  int vi[3];
-  double w[3];
+  const double* w = K.w;
   V sv[3];
-  for (int k = 0; k < 3; ++k) {
-    vi[k] = m.faces(t, k);
-    w[k] = m.inv_mass[vi[k]];
-    sv[k] = w[k] * a.x.row(vi[k]).transpose();
-  }
+  for (int k = 0; k < 3; ++k) sv[k] = w[k] * ax.row(K.v[k]).transpose();
   const V x0 = Eigen::Map<const V>(rec);
   const V d1 = Eigen::Map<const V>(rec + 3) - x0, d2 = Eigen::Map<const V>(rec + 6) - x0;
-  const Eigen::Matrix2d& B = rc.tri[t].B;
-  const double B00 = B(0, 0), B01 = B(0, 1), B10 = B(1, 0), B11 = B(1, 1);
+  const V lm = Eigen::Map<const V>(rec + 9);
+  const double B00 = K.B[0], B01 = K.B[1], B10 = K.B[2], B11 = K.B[3];
   const V f0 = d1 * B00 + d2 * B10, f1 = d1 * B01 + d2 * B11;
   const double c0[3] = {-(B00 + B10), B00, B10};
   const double c1[3] = {-(B01 + B11), B01, B11};
@@ -207,10 +262,7 @@ void reverse_tri(const XpbdSolver& S, const double* rec, const RowMatX3d& lam, i
     sg0 += c0[k] * sv[k];
     sg1 += c1[k] * sv[k];
   }
-  const double area = rc.tri[t].area;
-  const V al = S.control().stretch_compliance.row(m.tri_group[t]).transpose();
-  const V at = al / (area * dt2);
-  const V lm = lam.row(t).transpose();
+  const V at(K.at[0], K.at[1], K.at[2]);
   Eigen::Matrix3d A;
   A(0, 0) = s00 * ff00 + at[0];
   A(1, 1) = s11 * ff11 + at[1];
@@ -220,7 +272,8 @@ void reverse_tri(const XpbdSolver& S, const double* rec, const RowMatX3d& lam, i
   A(1, 2) = A(2, 1) = 0.5 * (s01 * ff11 + s11 * ff01);
   const Eigen::Matrix3d Ainv = A.inverse();  // SPD 3×3, closed form as in the forward projection
   const V dl = -(Ainv * (C + at.cwiseProduct(lm)));
-  const V dlbar = V(f0.dot(sg0), f1.dot(sg1), 0.5 * (f1.dot(sg0) + f0.dot(sg1))) + a.lam_tri.row(t).transpose();
+  Eigen::Map<V> lb(lbar);
+  const V dlbar = V(f0.dot(sg0), f1.dot(sg1), 0.5 * (f1.dot(sg0) + f0.dot(sg1))) + lb;
   const V u = Ainv * dlbar;
   const Eigen::Matrix3d M = -(u * dl.transpose() + dl * u.transpose());
   const V Cbar = -u;
@@ -238,56 +291,51 @@ void reverse_tri(const XpbdSolver& S, const double* rec, const RowMatX3d& lam, i
     return dl[q] * (sv[j] - sv[0]) + (w[j] * c0[j] - w[0] * c0[0]) * U[q] + (w[j] * c1[j] - w[0] * c1[0]) * W[q];
   };
   const V E01 = E(0, 1), E02 = E(0, 2), E11 = E(1, 1), E12 = E(1, 2), E21 = E(2, 1), E22 = E(2, 2);
-  a.tri_B(t, 0) += d1.dot(S0) + f0.dot(E01) + 0.5 * f1.dot(E21);  // B00
-  a.tri_B(t, 1) += d1.dot(S1) + f1.dot(E11) + 0.5 * f0.dot(E21);  // B01
-  a.tri_B(t, 2) += d2.dot(S0) + f0.dot(E02) + 0.5 * f1.dot(E22);  // B10
-  a.tri_B(t, 3) += d2.dot(S1) + f1.dot(E12) + 0.5 * f0.dot(E22);  // B11
-  // α̃_a = α_a / (Ā dt²): ∂/∂α_a and ∂/∂Ā, summed per triangle (finish_control). Ā's adjoint is
-  // diag(Ā) − u∘λ = −u∘(Δλ + λ).
+  acc[0] += d1.dot(S0) + f0.dot(E01) + 0.5 * f1.dot(E21);  // B00
+  acc[1] += d1.dot(S1) + f1.dot(E11) + 0.5 * f0.dot(E21);  // B01
+  acc[2] += d2.dot(S0) + f0.dot(E02) + 0.5 * f1.dot(E22);  // B10
+  acc[3] += d2.dot(S1) + f1.dot(E12) + 0.5 * f0.dot(E22);  // B11
+  // α̃_a = α_a / (Ā dt²): ∂α̃_a/∂α_a = α̃_a/α_a = 1/(Ā dt²), ∂α̃_a/∂Ā = −α̃_a/Ā. Ā's adjoint
+  // (of A) has diagonal −u∘Δλ, so that of α̃ is −u∘(Δλ + λ).
   for (int q = 0; q < 3; ++q) {
     const double atbar = -u[q] * (dl[q] + lm[q]);
-    a.tri_sc(t, q) += atbar / (area * dt2);
-    a.tri_area[t] -= atbar * al[q] / (area * area * dt2);
+    acc[5 + q] += atbar / (K.area * dt2);
+    acc[4] -= atbar * at[q] / K.area;
   }
-  for (int k = 0; k < 3; ++k) a.x.row(vi[k]) += (c0[k] * S0 + c1[k] * S1).transpose();
-  a.lam_tri.row(t) -= at.cwiseProduct(u).transpose();  // λ̄ = λ̄' − α̃∘u
+  for (int k = 0; k < 3; ++k) ax.row(K.v[k]) += (c0[k] * S0 + c1[k] * S1).transpose();
+  lb -= at.cwiseProduct(u);  // λ̄ = λ̄' − α̃∘u
 }
 
 // The hinge angle depends on x only (the rest shape enters through the weight w in α̃), so
-// z̄ = Gᵀ C̄ + D(∇θ)[Ḡ]: one tangent through the closed-form ∇θ.
-void reverse_hinge(const XpbdSolver& S, const double* rec, const VecXd& lam, int h, double dt2, Adjoints& a) {
-  const ClothModel& m = S.model();
-  double k = S.control().bend_stiffness[m.hinge_group[h]];
-  double kw = k * S.cache().hinge_weight[h];
-  if (!(kw > 0.0)) return;
+// z̄ = Gᵀ C̄ + D(∇θ)[Ḡ]. `rec`: 4 vertices, θ, λ. acc = (∂φ/∂k, ∂φ/∂w · w) with α̃ = 1/(k w dt²):
+// ∂α̃/∂k = −α̃/k and ∂α̃/∂w = −α̃/w; the second is divided by w in finish_control.
+void reverse_hinge(const HingeConst& K, const double* rec, double dt2, double* acc, double* lbar, RowMatX3d& ax) {
+  if (!(K.kw > 0.0)) return;
   const HingeGeom geo(rec);
   if (!geo.ok) return;
-  int vi[4];
   Eigen::Matrix<double, 12, 1> w, xb;
   Eigen::Matrix<double, 1, 12> G;
   for (int q = 0; q < 4; ++q) {
-    int i = vi[q] = m.hinges(h, q);
-    w.segment<3>(3 * q).setConstant(m.inv_mass[i]);
-    xb.segment<3>(3 * q) = a.x.row(i).transpose();
+    w.segment<3>(3 * q).setConstant(K.w[q]);
+    xb.segment<3>(3 * q) = ax.row(K.v[q]).transpose();
     G.segment<3>(3 * q) = geo.g[q].transpose();
   }
   Eigen::Matrix<double, 1, 1> C, at, lm, lb;
-  C[0] = rec[12] - m.hinge_rest_angle[h];
-  at[0] = 1.0 / (kw * dt2);
-  lm[0] = lam[h];
-  lb[0] = a.lam_hinge[h];
+  C[0] = rec[12] - K.theta0;
+  at[0] = 1.0 / (K.kw * dt2);
+  lm[0] = rec[13];
+  lb[0] = *lbar;
   auto r = block_adjoint<1, 12>(C, G, w, at, lm, false, xb, lb);
   Eigen::Vector3d gt[4];
   geo.tangent(r.Gbar.data(), gt);
-  // α̃ = 1/(k w dt²): ∂α̃/∂k = −α̃/k, ∂α̃/∂w = −α̃/w
-  a.hinge_k[h] -= r.atbar[0] * at[0] / k;
-  a.hinge_w[h] -= r.atbar[0] * at[0] / a.rd->w[h];
-  for (int q = 0; q < 4; ++q) a.x.row(vi[q]) += (r.Cbar[0] * geo.g[q] + gt[q]).transpose();
-  a.lam_hinge[h] = r.lbar[0];
+  acc[0] -= r.atbar[0] * at[0] / K.k;
+  acc[1] -= r.atbar[0] * at[0];
+  for (int q = 0; q < 4; ++q) ax.row(K.v[q]) += (r.Cbar[0] * geo.g[q] + gt[q]).transpose();
+  *lbar = r.lbar[0];
 }
 
-// Seams: C = x_i − x_j is linear (no Hessian term): z̄ = Jᵀ C̄.
-void reverse_seam(const XpbdSolver& S, const double* rec, const RowMatX3d& lam, int sidx, double dt2, Adjoints& a) {
+// Seams: C = x_i − x_j is linear (no Hessian term): z̄ = Jᵀ C̄. `rec`: 2 vertices, λ.
+void reverse_seam(const XpbdSolver& S, const double* rec, int sidx, double dt2, Adjoints& a) {
   const ClothModel& m = S.model();
   int i = m.seams(sidx, 0), j = m.seams(sidx, 1);
   const Eigen::Vector3d C = Eigen::Map<const Eigen::Vector3d>(rec) - Eigen::Map<const Eigen::Vector3d>(rec + 3);
@@ -300,7 +348,7 @@ void reverse_seam(const XpbdSolver& S, const double* rec, const RowMatX3d& lam, 
   xb.head<3>() = a.x.row(i).transpose();
   xb.tail<3>() = a.x.row(j).transpose();
   Eigen::Vector3d at = Eigen::Vector3d::Constant(m.seam_compliance / dt2);
-  Eigen::Vector3d lm = lam.row(sidx).transpose();
+  Eigen::Vector3d lm = Eigen::Map<const Eigen::Vector3d>(rec + 6);
   Eigen::Vector3d lb = a.lam_seam.row(sidx).transpose();
   auto r = block_adjoint<3, 6>(C, G, w, at, lm, false, xb, lb);
   a.x.row(i) += r.Cbar.transpose();
@@ -308,8 +356,8 @@ void reverse_seam(const XpbdSolver& S, const double* rec, const RowMatX3d& lam, 
   a.lam_seam.row(sidx) = r.lbar.transpose();
 }
 
-void reverse_contact(const XpbdSolver& S, const double* rec, const VecXd& lam, const Contact& ct, int ci,
-                     double dt2, Adjoints& a) {
+// `rec`: the vertex, λ.
+void reverse_contact(const XpbdSolver& S, const double* rec, const Contact& ct, int ci, double dt2, Adjoints& a) {
   const ClothModel& m = S.model();
   const ClothControl& c = S.control();
   const RowMatX3d& B = c.body_vertices;
@@ -323,7 +371,7 @@ void reverse_contact(const XpbdSolver& S, const double* rec, const VecXd& lam, c
   Eigen::Vector3d w = Eigen::Vector3d::Constant(m.inv_mass[ct.vertex]);
   Eigen::Vector3d xb = a.x.row(ct.vertex).transpose();
   at[0] = 1.0 / (m.contact_stiffness * dt2);
-  lm[0] = lam[ci];
+  lm[0] = rec[3];
   lb[0] = a.lam_contact[ci];
   auto r = block_adjoint<1, 3>(C, G, w, at, lm, true, xb, lb);
   // ψ = C̄ C + Ḡ·n̂ = n̂·v − C̄ h with v = C̄ (p − b0) + Ḡ: ∂ψ/∂p = C̄ n̂ (∇_p C = n̂ is constant in
@@ -346,43 +394,47 @@ void reverse_contact(const XpbdSolver& S, const double* rec, const VecXd& lam, c
   a.lam_contact[ci] = r.lbar[0];
 }
 
-/// Reverses the projections of one block (constraints of one kind sharing no vertex) from its
-/// records (`rec`, sim/sweep_tape.hpp), in parallel when `parallel` and the block is large. Writes
-/// only the block's vertices' rows and its own per-constraint entries.
-void reverse_block(const XpbdSolver& S, const double* rec, const SweepLambda& lam, const SweepBlock& b, double dt2,
-                   Adjoints& a, bool parallel) {
+/// Reverses the projections of one block (constraints of one kind sharing no vertex, positions
+/// first…first+n−1) from its records (`rec`), in parallel when `parallel` and the block is large.
+/// Writes only the block's vertices' rows and its own positions' entries.
+void reverse_block(const XpbdSolver& S, const double* rec, const SweepBlock& b, int first, double dt2, Adjoints& a,
+                   bool parallel) {
   const int n = static_cast<int>(b.idx.size());
   const bool par = parallel && n >= kReverseParallelMin;
   const int st = record_stride(b.kind);
   if (b.kind == ConstraintKind::kStretch) {
 #pragma omp parallel for schedule(static) if (par)
-    for (int j = 0; j < n; ++j) reverse_tri(S, rec + j * st, lam.tri, b.idx[j], dt2, a);
+    for (int j = 0; j < n; ++j)
+      reverse_tri(a.tri[first + j], rec + j * st, dt2, a.tri_acc.row(first + j).data(), a.lam_tri.row(first + j).data(),
+                  a.x);
   } else if (b.kind == ConstraintKind::kBending) {
 #pragma omp parallel for schedule(static) if (par)
-    for (int j = 0; j < n; ++j) reverse_hinge(S, rec + j * st, lam.hinge, b.idx[j], dt2, a);
+    for (int j = 0; j < n; ++j)
+      reverse_hinge(a.hinge[first + j], rec + j * st, dt2, a.hinge_acc.row(first + j).data(), &a.lam_hinge[first + j],
+                    a.x);
   } else {
 #pragma omp parallel for schedule(static) if (par)
-    for (int j = 0; j < n; ++j) reverse_seam(S, rec + j * st, lam.seam, b.idx[j], dt2, a);
+    for (int j = 0; j < n; ++j) reverse_seam(S, rec + j * st, b.idx[j], dt2, a);
   }
 }
 
 /// Reverses one sweep from its records (`sw`): the contacts (serial: they share body vertices),
 /// the interface, then the lanes — concurrently in the lane plan, each lane's blocks in reverse
 /// order.
-void reverse_sweep(const XpbdSolver& S, const SweepTape& sw, const SweepLambda& lam,
-                   const std::vector<Contact>& contacts, double dt, Adjoints& a) {
+void reverse_sweep(const XpbdSolver& S, const SweepTape& sw, const std::vector<Contact>& contacts, double dt,
+                   Adjoints& a) {
   const SweepPlan& plan = S.sweep_plan();
   const SweepTapeLayout& L = S.tape_layout();
   const double dt2 = dt * dt;
   const double* rec = sw.rec.data();
   for (int ci = 0; ci < static_cast<int>(contacts.size()); ++ci)  // independent: any order
-    reverse_contact(S, sw.contact.data() + 3 * ci, lam.contact, contacts[ci], ci, dt2, a);
+    reverse_contact(S, sw.contact.data() + kContactRecord * ci, contacts[ci], ci, dt2, a);
   for (int k = static_cast<int>(plan.interface.size()) - 1; k >= 0; --k)
-    reverse_block(S, rec + L.interface[k], lam, plan.interface[k], dt2, a, true);
+    reverse_block(S, rec + L.interface[k], plan.interface[k], L.interface_first[k], dt2, a, true);
   if (!plan.lane_parallel()) {
     const auto& blocks = plan.lanes[0];
     for (int k = static_cast<int>(blocks.size()) - 1; k >= 0; --k)
-      reverse_block(S, rec + L.lane[0][k], lam, blocks[k], dt2, a, true);
+      reverse_block(S, rec + L.lane[0][k], blocks[k], L.lane_first[0][k], dt2, a, true);
     return;
   }
   const int nl = static_cast<int>(plan.lanes.size());
@@ -390,7 +442,7 @@ void reverse_sweep(const XpbdSolver& S, const SweepTape& sw, const SweepLambda& 
   for (int l = 0; l < nl; ++l) {
     const auto& blocks = plan.lanes[l];
     for (int k = static_cast<int>(blocks.size()) - 1; k >= 0; --k)
-      reverse_block(S, rec + L.lane[l][k], lam, blocks[k], dt2, a, false);
+      reverse_block(S, rec + L.lane[l][k], blocks[k], L.lane_first[l][k], dt2, a, false);
   }
 }
 
@@ -401,54 +453,51 @@ void reverse_step(const XpbdSolver& S, const StepTape& tape, const SimParams& p,
   const ClothModel& m = S.model();
   const int nv = m.num_vertices;
   const double dt = p.dt, decay = std::exp(-p.damping * p.dt);
-  RowMatX3d xprev_bar = RowMatX3d::Zero(nv, 3);
+  RowMatX3d& xprev_bar = a.xprev;
+  xprev_bar.setZero(nv, 3);
   for (int i = 0; i < nv; ++i) {
     if (m.inv_mass[i] == 0.0) continue;  // pinned: v = 0, no dependence
     a.x.row(i) += vbar.row(i) / dt;
     xprev_bar.row(i) -= vbar.row(i) / dt;
   }
-  const Eigen::Index nf = m.faces.rows(), nh = m.hinges.rows(), ns = m.seams.rows();
   const Eigen::Index nc = static_cast<Eigen::Index>(tape.contacts.size());
-  a.lam_tri = RowMatX3d::Zero(nf, 3);
-  a.lam_hinge = VecXd::Zero(nh);
-  a.lam_seam = RowMatX3d::Zero(ns, 3);
-  a.lam_contact = VecXd::Zero(nc);
-  if (static_cast<int>(tape.sweeps.size()) < p.iterations || tape.lambda_sweep.size() < tape.sweeps.size())
+  a.lam_tri.setZero(a.tri.size(), 3);  // a step starts with λ = 0: no adjoint flows across steps
+  a.lam_hinge.setZero(a.hinge.size());
+  a.lam_seam.setZero(m.seams.rows(), 3);
+  a.lam_contact.setZero(nc);
+  if (static_cast<int>(tape.sweeps.size()) < p.iterations)
     throw std::logic_error("trajectory adjoint: tape does not match the sweep structure");
-  SweepLambda lam;
   for (int it = p.iterations - 1; it >= 0; --it) {
-    // Every constraint is projected once per sweep, so the multipliers before its pass are
-    // those at the sweep start.
-    const VecXd& L = tape.lambda_sweep[it];
     const SweepTape& sw = tape.sweeps[it];
-    if (L.size() != 3 * nf + nh + 3 * ns + nc || sw.rec.size() != S.tape_layout().size ||
-        sw.contact.size() != static_cast<std::size_t>(3 * nc))
+    if (sw.rec.size() != S.tape_layout().size || sw.contact.size() != static_cast<std::size_t>(kContactRecord * nc))
       throw std::logic_error("trajectory adjoint: tape size does not match the model");
-    lam.tri = Eigen::Map<const RowMatX3d>(L.data(), nf, 3);
-    lam.hinge = L.segment(3 * nf, nh);
-    lam.seam = Eigen::Map<const RowMatX3d>(L.data() + 3 * nf + nh, ns, 3);
-    lam.contact = L.tail(nc);
-    reverse_sweep(S, sw, lam, tape.contacts, dt, a);
+    reverse_sweep(S, sw, tape.contacts, dt, a);
   }
   // Prediction: x̃ = x + dt (decay v + dt g) for free vertices; pinned stay.
-  RowMatX3d vb = RowMatX3d::Zero(nv, 3);
+  RowMatX3d& vb = a.vnext;
+  vb.setZero(nv, 3);
   for (int i = 0; i < nv; ++i)
     if (m.inv_mass[i] != 0.0) vb.row(i) = decay * dt * a.x.row(i);
   a.x += xprev_bar;
-  vbar = vb;
+  vbar.swap(vb);
 }
 
-/// The chain rule from the per-constraint sums to the control: rest coordinates through ∂B/∂u,
-/// ∂Ā/∂u and ∂w/∂u; compliances and stiffnesses summed per group, in index order.
-void finish_control(const ClothModel& m, const RestDerivs& rd, const Adjoints& a, ControlGradient& g) {
-  for (Eigen::Index t = 0; t < m.faces.rows(); ++t) {
-    const Eigen::Matrix<double, 6, 1> zu = rd.dB[t].transpose() * a.tri_B.row(t).transpose() + a.tri_area[t] * rd.dA[t];
+/// The chain rule from the per-position sums to the control: rest coordinates through ∂B/∂u,
+/// ∂Ā/∂u and ∂w/∂u; compliances and stiffnesses summed per group, in plan order.
+void finish_control(const XpbdSolver& S, const RestDerivs& rd, const Adjoints& a, ControlGradient& g) {
+  const ClothModel& m = S.model();
+  for (std::size_t pos = 0; pos < a.tri.size(); ++pos) {
+    const int t = a.tri[pos].tri;
+    const auto acc = a.tri_acc.row(pos);
+    const Eigen::Matrix<double, 6, 1> zu = rd.dB[t].transpose() * acc.head<4>().transpose() + acc[4] * rd.dA[t];
     for (int k = 0; k < 3; ++k) g.rest.row(m.faces(t, k)) += zu.segment<2>(2 * k).transpose();
-    g.stretch_compliance.row(m.tri_group[t]) += a.tri_sc.row(t);
+    g.stretch_compliance.row(m.tri_group[t]) += acc.tail<3>();
   }
-  for (Eigen::Index h = 0; h < m.hinges.rows(); ++h) {
-    for (int q = 0; q < 4; ++q) g.rest.row(m.hinges(h, q)) += a.hinge_w[h] * rd.dw[h].segment<2>(2 * q).transpose();
-    g.bend_stiffness[m.hinge_group[h]] += a.hinge_k[h];
+  for (std::size_t pos = 0; pos < a.hinge.size(); ++pos) {
+    const int h = a.hinge[pos].hinge;
+    const double wbar = a.hinge_acc(pos, 1) / rd.w[h];
+    for (int q = 0; q < 4; ++q) g.rest.row(m.hinges(h, q)) += wbar * rd.dw[h].segment<2>(2 * q).transpose();
+    g.bend_stiffness[m.hinge_group[h]] += a.hinge_acc(pos, 0);
   }
 }
 
@@ -495,13 +544,10 @@ TrajectoryGradient trajectory_adjoint(XpbdSolver& S, const ClothState& start, co
   a.g.stretch_compliance = RowMatX3d::Zero(m.num_groups, 3);
   a.g.bend_stiffness = VecXd::Zero(m.num_groups);
   a.g.body_vertices = RowMatX3d::Zero(S.control().body_vertices.rows(), 3);
-  a.tri_B.setZero(m.faces.rows(), 4);
-  a.tri_area = VecXd::Zero(m.faces.rows());
-  a.tri_sc = RowMatX3d::Zero(m.faces.rows(), 3);
-  a.hinge_w = VecXd::Zero(m.hinges.rows());
-  a.hinge_k = VecXd::Zero(m.hinges.rows());
+  build_constants(S, p.dt * p.dt, a);
+  a.tri_acc.setZero(a.tri.size(), 8);
+  a.hinge_acc.setZero(a.hinge.size(), 2);
   const RestDerivs rd(S);
-  a.rd = &rd;
   double peak = 0.0, base = ckpt.size() * 2 * mb(start.x);
   StepTape tape;  // one step's tape, its buffers reused from step to step
   for (int seg = static_cast<int>(ckpt.size()) - 1; seg >= 0; --seg) {
@@ -523,7 +569,7 @@ TrajectoryGradient trajectory_adjoint(XpbdSolver& S, const ClothState& start, co
       rc.report({"trajectory backward", 2L * steps - t, 2L * steps, 0.0});
     }
   }
-  finish_control(m, rd, a, a.g);
+  finish_control(S, rd, a, a.g);
   out.control = a.g;
   out.x0 = a.x;
   out.v0 = vbar;

@@ -65,8 +65,10 @@ void XpbdSolver::project(ConstraintKind kind, int c, RowMatX3d& x, ClothState& s
       pp[k] = &p[k];
       w[k] = m.inv_mass[i];
     }
-    if (rec)
+    if (rec) {
       for (int k = 0; k < 3; ++k) Eigen::Map<Vec3>(rec + 3 * k) = p[k];
+      for (int a = 0; a < 3; ++a) rec[9 + a] = s.lambda_tri(c, a);
+    }
     Vec3 at = control_.stretch_compliance.row(m.tri_group[c]).transpose() / (cache_.tri[c].area * dt2);
     project_stretch(pp, w, cache_.tri[c], at, &s.lambda_tri(c, 0));
     for (int k = 0; k < 3; ++k) x.row(m.faces(c, k)) = p[k].transpose();
@@ -82,8 +84,10 @@ void XpbdSolver::project(ConstraintKind kind, int c, RowMatX3d& x, ClothState& s
       pp[q] = &p[q];
       w[q] = m.inv_mass[i];
     }
-    if (rec)
+    if (rec) {
       for (int q = 0; q < 4; ++q) Eigen::Map<Vec3>(rec + 3 * q) = p[q];
+      rec[13] = s.lambda_hinge[c];
+    }
     project_bending(pp, w, m.hinge_rest_angle[c], 1.0 / (kw * dt2), &s.lambda_hinge[c], rec ? rec + 12 : nullptr);
     for (int q = 0; q < 4; ++q) x.row(m.hinges(c, q)) = p[q].transpose();
   } else {
@@ -92,6 +96,7 @@ void XpbdSolver::project(ConstraintKind kind, int c, RowMatX3d& x, ClothState& s
     if (rec) {
       Eigen::Map<Vec3>{rec} = xa;
       Eigen::Map<Vec3>(rec + 3) = xb;
+      for (int a3 = 0; a3 < 3; ++a3) rec[6 + a3] = s.lambda_seam(c, a3);
     }
     project_seam(xa, xb, m.inv_mass[a], m.inv_mass[b], m.seam_compliance / dt2, &s.lambda_seam(c, 0));
     x.row(a) = xa.transpose();
@@ -106,7 +111,7 @@ void XpbdSolver::sweep(ClothState& s, double dt, SweepTape* tape) {
   const int nc = static_cast<int>(contacts_.size());
   if (tape) {
     tape->rec.resize(layout_.size);  // reused across sweeps and steps: no reallocation
-    tape->contact.resize(3 * static_cast<std::size_t>(nc));
+    tape->contact.resize(kContactRecord * static_cast<std::size_t>(nc));
   }
   // Record pointer of a block's j-th projection, or null without a tape.
   auto rec = [&](std::size_t off, const SweepBlock& b, int j) -> double* {
@@ -117,7 +122,10 @@ void XpbdSolver::sweep(ClothState& s, double dt, SweepTape* tape) {
   auto contact = [&](int j) {
     const Contact& ct = contacts_[j];
     Vec3 pi = x.row(ct.vertex).transpose();
-    if (tape) Eigen::Map<Vec3>(tape->contact.data() + 3 * j) = pi;
+    if (tape) {
+      Eigen::Map<Vec3>(tape->contact.data() + kContactRecord * j) = pi;
+      tape->contact[kContactRecord * j + 3] = s.lambda_contact[j];
+    }
     project_contact(pi, m.inv_mass[ct.vertex], collider_.normal(ct.tri), collider_.vertex(ct.tri, 0), m.thickness, ac,
                     &s.lambda_contact[j]);
     x.row(ct.vertex) = pi.transpose();
@@ -165,8 +173,7 @@ void XpbdSolver::sweep(ClothState& s, double dt, SweepTape* tape) {
 }
 
 double StepTape::mb() const {
-  double d = (x_start.size() + v_start.size()) * 8.0 / 1048576.0;
-  for (const auto& l : lambda_sweep) d += l.size() * 8.0 / 1048576.0;
+  double d = 0.0;
   for (const auto& sw : sweeps) d += sw.mb();
   return d;
 }
@@ -174,10 +181,6 @@ double StepTape::mb() const {
 double XpbdSolver::step(ClothState& s, const SimParams& p, StepTape* tape) {
   const ClothModel& m = model_;
   const int nv = m.num_vertices;
-  if (tape) {
-    tape->x_start = s.x;
-    tape->v_start = s.v;
-  }
   RowMatX3d x_prev = s.x;
   const double decay = std::exp(-p.damping * p.dt);
   double vpred = 0.0;
@@ -195,21 +198,8 @@ double XpbdSolver::step(ClothState& s, const SimParams& p, StepTape* tape) {
   s.lambda_seam.setZero();
   s.lambda_contact = VecXd::Zero(contacts_.size());
   if (tape) tape->contacts = contacts_;
-  if (tape) {
-    tape->lambda_sweep.resize(p.iterations);
-    tape->sweeps.resize(p.iterations);
-  }
-  const Eigen::Index nt = s.lambda_tri.size(), nh = s.lambda_hinge.size(), ns = s.lambda_seam.size();
+  if (tape) tape->sweeps.resize(p.iterations);
   for (int it = 0; it < p.iterations; ++it) {
-    if (tape) {
-      const Eigen::Index nc = s.lambda_contact.size();
-      VecXd& l = tape->lambda_sweep[it];
-      l.resize(nt + nh + ns + nc);
-      l.head(nt) = Eigen::Map<const VecXd>(s.lambda_tri.data(), nt);
-      l.segment(nt, nh) = s.lambda_hinge;
-      l.segment(nt + nh, ns) = Eigen::Map<const VecXd>(s.lambda_seam.data(), ns);
-      l.tail(nc) = s.lambda_contact;
-    }
     sweep(s, p.dt, tape ? &tape->sweeps[it] : nullptr);
   }
   double vmax = 0.0;

@@ -40,14 +40,11 @@ struct DrapeParams {
   int refine_iterations = 200;  // Newton steps at most (buckled drapes converge linearly for a while: the 2.5 cm t-shirt needed 65)
 };
 
-/// What the trajectory adjoint needs to reverse one step: the state at its start, the
-/// multipliers at the start of every sweep (flattened as [tri (#F×3) | hinge (#H) | seam (#S×3) |
-/// contact]), every sweep's projection records (sim/sweep_tape.hpp) and the contacts. O(iterations
-/// × projections) doubles: about 100 MB per step on a 10k-vertex garment at 20 sweeps; one step's
-/// tape is alive at a time, and step() reuses its buffers.
+/// What the trajectory adjoint needs to reverse one step: every sweep's projection records
+/// (sim/sweep_tape.hpp) and the step's contacts. O(iterations × projections)
+/// doubles: about 100 MB per step on a 10k-vertex garment at 20 sweeps; one step's tape is alive
+/// at a time, and step() reuses its buffers.
 struct StepTape {
-  RowMatX3d x_start, v_start;
-  std::vector<VecXd> lambda_sweep;
   std::vector<SweepTape> sweeps;
   std::vector<Contact> contacts;
   double mb() const;
