@@ -501,10 +501,13 @@ void finish_control(const XpbdSolver& S, const RestDerivs& rd, const Adjoints& a
   }
 }
 
-// Checkpoints and segment starts keep positions and velocities only: a step zeroes its
-// multipliers before the first sweep, so they carry no information across steps.
+// Checkpoints and segment starts keep positions and velocities (a step zeroes its multipliers
+// before the first sweep, so they carry no information across steps) and, once known, the
+// contacts their step detected, so a replay does not search the body again.
 struct PosVel {
   RowMatX3d x, v;
+  std::vector<Contact> contacts;  // those the step from this state detected (replayed, not re-detected)
+  bool has_contacts = false;
 };
 ClothState restore(const XpbdSolver& S, const PosVel& c) {
   ClothState s = S.make_state(c.x);
@@ -531,8 +534,12 @@ TrajectoryGradient trajectory_adjoint(XpbdSolver& S, const ClothState& start, co
   ClothState s = start;
   for (int t = 0; t < steps; ++t) {
     rc.check("trajectory adjoint (forward)");
-    if (t % k == 0) ckpt.push_back({s.x, s.v});
+    if (t % k == 0) ckpt.push_back({s.x, s.v, {}, false});
     S.step(s, p);
+    if (t % k == 0) {
+      ckpt.back().contacts = S.contacts();
+      ckpt.back().has_contacts = true;
+    }
     rc.report({"trajectory forward", t + 1, 2L * steps, 0.0});
   }
   TrajectoryGradient out;
@@ -548,20 +555,33 @@ TrajectoryGradient trajectory_adjoint(XpbdSolver& S, const ClothState& start, co
   a.tri_acc.setZero(a.tri.size(), 8);
   a.hinge_acc.setZero(a.hinge.size(), 2);
   const RestDerivs rd(S);
-  double peak = 0.0, base = ckpt.size() * 2 * mb(start.x);
+  double peak = 0.0, base = 0.0;
+  for (const PosVel& c : ckpt) base += 2 * mb(c.x) + c.contacts.size() * sizeof(Contact) / 1048576.0;
   StepTape tape;  // one step's tape, its buffers reused from step to step
   for (int seg = static_cast<int>(ckpt.size()) - 1; seg >= 0; --seg) {
     int t_begin = seg * k, t_end = std::min(steps, t_begin + k);
     std::vector<PosVel> starts;
     ClothState r = restore(S, ckpt[seg]);
     for (int t = t_begin; t < t_end; ++t) {
-      starts.push_back({r.x, r.v});
-      if (t + 1 < t_end) S.step(r, p);
+      starts.push_back({r.x, r.v, {}, false});
+      if (t == t_begin) {
+        starts.back().contacts = ckpt[seg].contacts;
+        starts.back().has_contacts = ckpt[seg].has_contacts;
+      }
+      if (t + 1 < t_end) {
+        const bool known = starts.back().has_contacts;
+        S.step(r, p, nullptr, known ? &starts.back().contacts : nullptr);
+        if (!known) {
+          starts.back().contacts = S.contacts();
+          starts.back().has_contacts = true;
+        }
+      }
     }
     for (int t = t_end - 1; t >= t_begin; --t) {
       rc.check("trajectory adjoint (backward)");
-      ClothState q = restore(S, starts[t - t_begin]);
-      S.step(q, p, &tape);
+      const PosVel& st = starts[t - t_begin];
+      ClothState q = restore(S, st);
+      S.step(q, p, &tape, st.has_contacts ? &st.contacts : nullptr);
       reverse_step(S, tape, p, a, vbar);
       const double tape_mb = tape.mb();
       out.step_tape_mb = std::max(out.step_tape_mb, tape_mb);

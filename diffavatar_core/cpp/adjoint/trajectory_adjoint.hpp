@@ -5,9 +5,9 @@
 // are reversed from the last, projection by projection (adjoint/projection_vjp.hpp), reading the
 // records sequentially, in the sweep plan's blocks (parallel as in the forward sweep). Memory is
 // bounded by checkpointing: the forward pass keeps the state every `checkpoint_every` steps; the
-// backward pass recomputes one segment at a time and holds one step's tape. Contacts are
-// detected in each replayed step exactly as in the forward pass (their selection is not
-// differentiated).
+// backward pass recomputes one segment at a time and holds one step's tape. Every replayed step
+// uses the contacts its first run detected (kept with the checkpoints and segment starts; their
+// selection is not differentiated).
 #pragma once
 #include "common/run_control.hpp"
 #include "sim/cloth_energy.hpp"

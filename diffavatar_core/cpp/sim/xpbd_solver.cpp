@@ -178,7 +178,7 @@ double StepTape::mb() const {
   return d;
 }
 
-double XpbdSolver::step(ClothState& s, const SimParams& p, StepTape* tape) {
+double XpbdSolver::step(ClothState& s, const SimParams& p, StepTape* tape, const std::vector<Contact>* contacts) {
   const ClothModel& m = model_;
   const int nv = m.num_vertices;
   RowMatX3d x_prev = s.x;
@@ -192,7 +192,10 @@ double XpbdSolver::step(ClothState& s, const SimParams& p, StepTape* tape) {
   }
   // Contacts of the predicted positions; the search radius grows with the step's travel so a
   // fast vertex cannot tunnel through the collision layer between detections.
-  contacts_ = collider_.detect(s.x, m.inv_mass, m.thickness + p.contact_radius + std::min(vpred * p.dt, 0.1));
+  if (contacts)
+    contacts_ = *contacts;
+  else
+    contacts_ = collider_.detect(s.x, m.inv_mass, m.thickness + p.contact_radius + std::min(vpred * p.dt, 0.1));
   s.lambda_tri.setZero();
   s.lambda_hinge.setZero();
   s.lambda_seam.setZero();

@@ -73,8 +73,11 @@ class XpbdSolver {
   void set_control(ClothControl control);
   /// A state at rest at positions x (m): v = 0, λ = 0.
   ClothState make_state(const RowMatX3d& x) const;
-  /// One XPBD step of length p.dt. Returns the max vertex speed (m/s) after the step.
-  double step(ClothState& s, const SimParams& p, StepTape* tape = nullptr);
+  /// One XPBD step of length p.dt. Returns the max vertex speed (m/s) after the step. With
+  /// `contacts`, they are used instead of detecting them (the trajectory adjoint's replay passes
+  /// those the same step detected in its first run: identical by construction).
+  double step(ClothState& s, const SimParams& p, StepTape* tape = nullptr,
+              const std::vector<Contact>* contacts = nullptr);
   /// One projection sweep over all constraints (the benchmark's unit of work), in plan order;
   /// with a tape, every projection's inputs are recorded in it (sim/sweep_tape.hpp).
   void sweep(ClothState& s, double dt, SweepTape* tape = nullptr);
