@@ -12,17 +12,22 @@ Definitions (also written into the JSON under "definitions"):
   equilibrium_adjoint_s   equilibrium_gradient() at the draped state (one sparse LDLT solve).
   forward_step_s          one XPBD step without tape (XpbdSolver.step), best of 2, from the
                           state the trajectory adjoint starts at (the initial placement).
-  trajectory_adjoint_s    trajectory_gradient() over the drape's XPBD steps. The reverse pass
-                          is slow (~100x forward) so it is measured over --traj-steps steps and
-                          extrapolated linearly to the drape's step count (extrapolated: true),
-                          per step the best of the two runs (k = 1 and k = --traj-steps);
-                          trajectory_over_forward = its time per step / forward_step_s (a measured
-                          ratio, no extrapolation in it).
+  trajectory_adjoint_s    trajectory_gradient() over the drape's XPBD steps, extrapolated from
+                          runs over 1 and --traj-steps steps (k = 1): fixed_s + per_step_s × the
+                          drape's steps (extrapolated: true). per_step_s = (wall(T) − wall(1))/(T − 1)
+                          is the marginal cost of a step (forward, replay with recording, reverse);
+                          fixed_s = wall(1) − per_step_s is the per-call cost (rest derivatives,
+                          first touch of the tape). trajectory_over_forward = per_step_s /
+                          forward_step_s (both measured); trajectory_over_forward_incl_fixed adds
+                          fixed_s / T.
   peak_memory_mb          peak_tape_mb reported by trajectory_gradient (checkpoints + one segment
                           of step starts + one step's tape): measured at --traj-steps without
                           checkpointing (k = 1: every state kept) and with (k = --traj-steps),
                           and extrapolated to a 2,000-step drape (k = 1 vs k = ceil(sqrt(2000)))
                           with the model peak = tape_step + 2 state (ceil(T/k) + k).
+  full_trajectory         (--full-steps N) trajectory_gradient() end to end over N steps, for each
+                          k of --full-k (default ceil(sqrt(N))): measured wall, peak tape and RSS,
+                          next to the same N forward steps timed in the same process.
 """
 from __future__ import annotations
 
@@ -57,13 +62,19 @@ def parse_args(argv=None):
     ap.add_argument("--edge", type=float, default=None, help="target edge (m); default 0.01 (>= 10k vertices), quick 0.025")
     ap.add_argument("--iterations", type=int, default=20, help="sweeps per XPBD step (drape and trajectory)")
     ap.add_argument("--drape-steps", type=int, default=None, help="step budget of the forward drape (default 200, quick 100)")
-    ap.add_argument("--traj-steps", type=int, default=2, help="steps the trajectory adjoint is measured over")
+    ap.add_argument("--refine-iterations", type=int, default=60,
+                    help="Newton cap of the forward drape (60 as in the earlier runs: the 200-step drape is not settled, "
+                         "and the drape CLI's 200-step cap with its re-detection rounds took 937 s there)")
+    ap.add_argument("--traj-steps", type=int, default=8, help="steps the trajectory adjoint is measured over (>= 2)")
     ap.add_argument("--skip-trajectory", action="store_true")
     ap.add_argument("--full-steps", type=int, default=0,
                     help="also run the trajectory adjoint end to end over this many steps with checkpointing "
-                         "(k = ceil(sqrt(N))) and measure its peak memory and time (e.g. 2000)")
+                         "and measure its peak memory and time (e.g. 2000)")
+    ap.add_argument("--full-k", type=int, nargs="*", default=None,
+                    help="checkpoint intervals of the --full-steps runs (default: ceil(sqrt(N)))")
     a = ap.parse_args(argv)
     a.edge = a.edge or (0.025 if a.quick else 0.01)
+    a.traj_steps = max(2, a.traj_steps)
     a.drape_steps = a.drape_steps or (100 if a.quick else 200)
     return a
 
@@ -177,29 +188,33 @@ def fd_checks():
 
 
 def full_trajectory(cloth, g, W, p, a):
-    """The trajectory adjoint end to end over a.full_steps steps from the initial placement, with
-    checkpointing: measured time, the implementation's peak tape and the process's peak RSS, next
-    to the forward steps alone (no tape) in the same process."""
+    """The trajectory adjoint end to end over a.full_steps steps from the initial placement, for
+    each checkpoint interval of a.full_k: measured time, the implementation's peak tape and the
+    process's peak RSS, next to the forward steps alone (no tape) in the same process."""
     N = a.full_steps
-    k = math.ceil(math.sqrt(N))
+    ks = a.full_k or [math.ceil(math.sqrt(N))]
     s = cloth.solver.make_state(g["x0"])
     t0 = time.perf_counter()
     cloth.solver.step(s, p, N)
     forward_s = time.perf_counter() - t0
     cloth.reset(g["x0"])
-    rss0 = rss_mb()
-    t0 = time.perf_counter()
-    gt = trajectory_gradient(cloth, N, W, checkpoint_every=k, dt=DT, iterations=a.iterations)
-    wall = time.perf_counter() - t0
-    finite = all(bool(np.all(np.isfinite(np.asarray(gt[key])))) for key in
-                 ("rest", "stretch_compliance", "bend_stiffness", "body_vertices", "x0", "v0"))
-    return dict(steps=N, checkpoint_every=k, iterations_per_step=a.iterations, forward_steps_s=forward_s,
-                trajectory_adjoint_s=wall, trajectory_over_forward=wall / forward_s,
-                peak_tape_mb=float(gt["peak_tape_mb"]), step_tape_mb=float(gt["step_tape_mb"]),
-                process_peak_rss_mb=rss_mb(), process_peak_rss_growth_mb=rss_mb() - rss0,
-                gradient_finite=finite, final_state_finite=bool(np.all(np.isfinite(np.asarray(gt["x_final"])))),
+    runs = []
+    for k in sorted(ks, reverse=True):  # the lighter run first: ru_maxrss is a high-water mark
+        rss0 = rss_mb()
+        t0 = time.perf_counter()
+        gt = trajectory_gradient(cloth, N, W, checkpoint_every=k, dt=DT, iterations=a.iterations)
+        wall = time.perf_counter() - t0
+        finite = all(bool(np.all(np.isfinite(np.asarray(gt[key])))) for key in
+                     ("rest", "stretch_compliance", "bend_stiffness", "body_vertices", "x0", "v0"))
+        runs.append(dict(checkpoint_every=k, trajectory_adjoint_s=wall, trajectory_over_forward=wall / forward_s,
+                         peak_tape_mb=float(gt["peak_tape_mb"]), step_tape_mb=float(gt["step_tape_mb"]),
+                         process_peak_rss_mb=rss_mb(), process_peak_rss_growth_mb=rss_mb() - rss0,
+                         gradient_finite=finite,
+                         final_state_finite=bool(np.all(np.isfinite(np.asarray(gt["x_final"]))))))
+    return dict(steps=N, iterations_per_step=a.iterations, forward_steps_s=forward_s, runs=runs,
                 note="measured end to end (no extrapolation): forward pass storing checkpoints, then per segment "
-                     "a re-run storing step starts and the reverse pass")
+                     "a re-run storing step starts (none when k = 1), then per step a replay recording every "
+                     "projection and the reverse pass")
 
 
 def main(argv=None):
@@ -216,10 +231,10 @@ def main(argv=None):
                       "`iterations` sweeps each, until settled or the step budget, then Newton refinement)"),
         ("equilibrium_adjoint_s", "wall s of equilibrium_gradient() at the draped state, loss sum(W*x) with random W"),
         ("forward_step_s", "wall s of one XPBD step without tape (XpbdSolver.step), best of 2, from the initial placement"),
-        ("trajectory_adjoint_s", "trajectory_gradient() wall s per step (best of the k=1 and k=traj_steps runs over "
-                                 "traj_steps steps) times the "
-                                 "drape's XPBD steps: extrapolated"),
-        ("trajectory_over_forward", "trajectory adjoint s per step / forward_step_s (both measured)"),
+        ("trajectory_adjoint_s", "trajectory_gradient() wall s extrapolated to the drape's XPBD steps: fixed_s + "
+                                 "per_step_s × steps, from k=1 runs over 1 and traj_steps steps"),
+        ("trajectory_over_forward", "per_step_s (the marginal cost of one step: forward, replay with recording, "
+                                    "reverse) / forward_step_s (both measured)"),
         ("equilibrium_over_forward", "equilibrium_adjoint_s / forward_s"),
         ("peak_memory_mb", "peak_tape_mb of trajectory_gradient (checkpoints + segment starts + one step's tape)"),
     )}
@@ -235,7 +250,8 @@ def main(argv=None):
 
     # --- forward drape and equilibrium adjoint ---------------------------------------------------
     t0 = time.perf_counter()
-    r = cloth.drape(max_steps=a.drape_steps, iterations=a.iterations, raise_on_divergence=False)
+    r = cloth.drape(max_steps=a.drape_steps, iterations=a.iterations, refine_iterations=a.refine_iterations,
+                    raise_on_divergence=False)
     forward_s = time.perf_counter() - t0
     out.update(forward_s=forward_s,
                forward_drape={"steps": r.steps, "step_budget": a.drape_steps, "settled": r.settled,
@@ -262,27 +278,30 @@ def main(argv=None):
         forward_step_s = min(fw)
         cloth.reset(g["x0"])
         runs = {}
-        for k in (T, 1):  # the lighter run first: ru_maxrss is a high-water mark
+        for steps, k in ((T, T), (1, 1), (T, 1)):  # the lighter runs first: ru_maxrss is a high-water mark
             rss0 = rss_mb()
             t0 = time.perf_counter()
-            gt = trajectory_gradient(cloth, T, W, checkpoint_every=k, dt=DT, iterations=a.iterations)
-            runs[k] = dict(wall_s=time.perf_counter() - t0, peak_tape_mb=float(gt["peak_tape_mb"]),
-                           process_peak_rss_growth_mb=rss_mb() - rss0)
-        per_step = min(v["wall_s"] for v in runs.values()) / T  # best of the two runs (k = T adds T-1 forward steps)
+            gt = trajectory_gradient(cloth, steps, W, checkpoint_every=k, dt=DT, iterations=a.iterations)
+            runs[(steps, k)] = dict(steps=steps, checkpoint_every=k, wall_s=time.perf_counter() - t0,
+                                    peak_tape_mb=float(gt["peak_tape_mb"]), step_tape_mb=float(gt["step_tape_mb"]),
+                                    process_peak_rss_growth_mb=rss_mb() - rss0)
+        per_step = (runs[(T, 1)]["wall_s"] - runs[(1, 1)]["wall_s"]) / (T - 1)
+        fixed = runs[(1, 1)]["wall_s"] - per_step
         state_mb = V * 3 * 8 / 1048576.0
 
         def slots(steps, k):
             return math.ceil(steps / k) + min(k, steps)
 
-        tape_step_mb = runs[1]["peak_tape_mb"] - 2 * state_mb * slots(T, 1)
+        tape_step_mb = runs[(T, 1)]["step_tape_mb"]
         n2000, k2000 = 2000, math.ceil(math.sqrt(2000))
         out.update(
             forward_step_s=forward_step_s,
-            trajectory_adjoint_s=per_step * r.steps, extrapolated=True,
+            trajectory_adjoint_s=fixed + per_step * r.steps, extrapolated=True,
             trajectory_over_forward=per_step / forward_step_s,
+            trajectory_over_forward_incl_fixed=(per_step + fixed / T) / forward_step_s,
             peak_memory_mb={
-                "measured": {"steps": T, "without_checkpointing": runs[1]["peak_tape_mb"],
-                             f"with_checkpointing_k{T}": runs[T]["peak_tape_mb"]},
+                "measured": {"steps": T, "without_checkpointing": runs[(T, 1)]["peak_tape_mb"],
+                             f"with_checkpointing_k{T}": runs[(T, T)]["peak_tape_mb"]},
                 "extrapolated_2000_steps": {
                     "without_checkpointing": tape_step_mb + 2 * state_mb * slots(n2000, 1),
                     f"with_checkpointing_k{k2000}": tape_step_mb + 2 * state_mb * slots(n2000, k2000),
@@ -290,10 +309,11 @@ def main(argv=None):
                     "state_mb": state_mb},
             },
             trajectory_adjoint={"measured_steps": T, "iterations_per_step": a.iterations,
-                                "wall_s_per_step": per_step, "runs": {f"k{k}": v for k, v in runs.items()},
+                                "per_step_s": per_step, "fixed_s": fixed,
+                                "runs": [v for v in runs.values()],
                                 "extrapolated_to_steps": r.steps,
-                                "note": "measured on a reduced number of steps and extrapolated linearly "
-                                        "(the reverse pass costs the same per step)"})
+                                "note": "fixed_s + per_step_s × the drape's steps; per_step_s is the marginal "
+                                        "cost of a step between the 1- and T-step runs"})
     if a.full_steps > 0:
         out["full_trajectory"] = full_trajectory(cloth, g, W, p, a)
     out["fd_check"] = fd_checks()
