@@ -163,6 +163,10 @@ struct Adjoints {
   VecXd lam_hinge;    // by position
   RowMatX3d lam_seam; // by seam index
   VecXd lam_contact;  // by contact index
+  // Per contact of the current step, its body triangle's gradient summed over the step's sweeps
+  // (b0, b1, b2 × 3); scattered to the body vertices in contact order at the step's end, so the
+  // contacts (which share body vertices) are reversed in parallel.
+  Eigen::Matrix<double, Eigen::Dynamic, 9, Eigen::RowMajor> contact_body;
   ControlGradient g;  // control gradient (body vertices directly; the rest in finish_control)
   // Per-position sums over every projection of the trajectory. The rest shape and the material
   // enter a projection only through these per-constraint quantities, and the control is fixed
@@ -170,7 +174,7 @@ struct Adjoints {
   // (finish_control) instead of once per projection; each position is reversed by one thread per
   // sweep, so the sums do not depend on the thread count.
   Eigen::Matrix<double, Eigen::Dynamic, 8, Eigen::RowMajor> tri_acc;    // ∂φ/∂(B00, B01, B10, B11), ∂φ/∂Ā, ∂φ/∂α (3)
-  Eigen::Matrix<double, Eigen::Dynamic, 2, Eigen::RowMajor> hinge_acc;  // ∂φ/∂k, ∂φ/∂(k w)·k (see reverse_hinge)
+  Eigen::Matrix<double, Eigen::Dynamic, 2, Eigen::RowMajor> hinge_acc;  // ∂φ/∂k, w ∂φ/∂w (see reverse_hinge)
   std::vector<TriConst> tri;
   std::vector<HingeConst> hinge;
 };
@@ -313,25 +317,29 @@ void reverse_hinge(const HingeConst& K, const double* rec, double dt2, double* a
   if (!(K.kw > 0.0)) return;
   const HingeGeom geo(rec);
   if (!geo.ok) return;
-  Eigen::Matrix<double, 12, 1> w, xb;
-  Eigen::Matrix<double, 1, 12> G;
+  // block_adjoint (projection_vjp.hpp) for one row: A = Σ w_q|g_q|² + α̃, Δλ = −(C + α̃λ)/A,
+  // s_q = w_q x̄'_q, u = (Σ g_q·s_q + λ̄')/A, Ḡ_q = Δλ s_q − 2uΔλ w_q g_q, C̄ = −u,
+  // α̃'s adjoint −u(Δλ + λ), λ̄ = λ̄' − α̃u.
+  const double at = 1.0 / (K.kw * dt2), lm = rec[13];
+  Eigen::Vector3d sv[4];
+  double A = at, gs = 0.0;
   for (int q = 0; q < 4; ++q) {
-    w.segment<3>(3 * q).setConstant(K.w[q]);
-    xb.segment<3>(3 * q) = ax.row(K.v[q]).transpose();
-    G.segment<3>(3 * q) = geo.g[q].transpose();
+    sv[q] = K.w[q] * ax.row(K.v[q]).transpose();
+    A += K.w[q] * geo.g[q].squaredNorm();
+    gs += geo.g[q].dot(sv[q]);
   }
-  Eigen::Matrix<double, 1, 1> C, at, lm, lb;
-  C[0] = rec[12] - K.theta0;
-  at[0] = 1.0 / (K.kw * dt2);
-  lm[0] = rec[13];
-  lb[0] = *lbar;
-  auto r = block_adjoint<1, 12>(C, G, w, at, lm, false, xb, lb);
+  const double dl = -(rec[12] - K.theta0 + at * lm) / A;
+  const double u = (gs + *lbar) / A;
+  double gbar[12];
+  for (int q = 0; q < 4; ++q)
+    Eigen::Map<Eigen::Vector3d>(gbar + 3 * q) = dl * sv[q] - (2.0 * u * dl * K.w[q]) * geo.g[q];
   Eigen::Vector3d gt[4];
-  geo.tangent(r.Gbar.data(), gt);
-  acc[0] -= r.atbar[0] * at[0] / K.k;
-  acc[1] -= r.atbar[0] * at[0];
-  for (int q = 0; q < 4; ++q) ax.row(K.v[q]) += (r.Cbar[0] * geo.g[q] + gt[q]).transpose();
-  *lbar = r.lbar[0];
+  geo.tangent(gbar, gt);
+  const double atbar = -u * (dl + lm);
+  acc[0] -= atbar * at / K.k;
+  acc[1] -= atbar * at;
+  for (int q = 0; q < 4; ++q) ax.row(K.v[q]) += (-u * geo.g[q] + gt[q]).transpose();
+  *lbar -= at * u;
 }
 
 // Seams: C = x_i − x_j is linear (no Hessian term): z̄ = Jᵀ C̄. `rec`: 2 vertices, λ.
@@ -388,9 +396,10 @@ void reverse_contact(const XpbdSolver& S, const double* rec, const Contact& ct, 
   const Eigen::Vector3d y = (v - nh * nh.dot(v)) / nl;
   const Eigen::Vector3d g1 = e2.cross(y), g2 = y.cross(e1);
   a.x.row(ct.vertex) += cb * nh.transpose();
-  a.g.body_vertices.row(bi[0]) -= (g1 + g2 + cb * nh).transpose();
-  a.g.body_vertices.row(bi[1]) += g1.transpose();
-  a.g.body_vertices.row(bi[2]) += g2.transpose();
+  auto body = a.contact_body.row(ci);
+  body.segment<3>(0) -= (g1 + g2 + cb * nh).transpose();
+  body.segment<3>(3) += g1.transpose();
+  body.segment<3>(6) += g2.transpose();
   a.lam_contact[ci] = r.lbar[0];
 }
 
@@ -418,8 +427,9 @@ void reverse_block(const XpbdSolver& S, const double* rec, const SweepBlock& b, 
   }
 }
 
-/// Reverses one sweep from its records (`sw`): the contacts (serial: they share body vertices),
-/// the interface, then the lanes — concurrently in the lane plan, each lane's blocks in reverse
+/// Reverses one sweep from its records (`sw`): the contacts (in parallel: a vertex has at most
+/// one contact, BodyCollider::detect, and their body gradients go to per-contact rows), the
+/// interface, then the lanes — concurrently in the lane plan, each lane's blocks in reverse
 /// order.
 void reverse_sweep(const XpbdSolver& S, const SweepTape& sw, const std::vector<Contact>& contacts, double dt,
                    Adjoints& a) {
@@ -427,7 +437,9 @@ void reverse_sweep(const XpbdSolver& S, const SweepTape& sw, const std::vector<C
   const SweepTapeLayout& L = S.tape_layout();
   const double dt2 = dt * dt;
   const double* rec = sw.rec.data();
-  for (int ci = 0; ci < static_cast<int>(contacts.size()); ++ci)  // independent: any order
+  const int nc = static_cast<int>(contacts.size());
+#pragma omp parallel for schedule(static) if (nc >= kReverseParallelMin)
+  for (int ci = 0; ci < nc; ++ci)  // independent: any order
     reverse_contact(S, sw.contact.data() + kContactRecord * ci, contacts[ci], ci, dt2, a);
   for (int k = static_cast<int>(plan.interface.size()) - 1; k >= 0; --k)
     reverse_block(S, rec + L.interface[k], plan.interface[k], L.interface_first[k], dt2, a, true);
@@ -465,6 +477,7 @@ void reverse_step(const XpbdSolver& S, const StepTape& tape, const SimParams& p,
   a.lam_hinge.setZero(a.hinge.size());
   a.lam_seam.setZero(m.seams.rows(), 3);
   a.lam_contact.setZero(nc);
+  a.contact_body.setZero(nc, 9);
   if (static_cast<int>(tape.sweeps.size()) < p.iterations)
     throw std::logic_error("trajectory adjoint: tape does not match the sweep structure");
   for (int it = p.iterations - 1; it >= 0; --it) {
@@ -473,6 +486,9 @@ void reverse_step(const XpbdSolver& S, const StepTape& tape, const SimParams& p,
       throw std::logic_error("trajectory adjoint: tape size does not match the model");
     reverse_sweep(S, sw, tape.contacts, dt, a);
   }
+  for (Eigen::Index ci = 0; ci < nc; ++ci)
+    for (int q = 0; q < 3; ++q)
+      a.g.body_vertices.row(m.body_faces(tape.contacts[ci].tri, q)) += a.contact_body.row(ci).segment<3>(3 * q);
   // Prediction: x̃ = x + dt (decay v + dt g) for free vertices; pinned stay.
   RowMatX3d& vb = a.vnext;
   vb.setZero(nv, 3);

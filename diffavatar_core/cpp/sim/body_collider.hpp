@@ -23,7 +23,8 @@ class BodyCollider {
   bool empty() const { return !bvh_; }
   void set_vertices(const RefX3d& V);
   /// Contacts of the free vertices of x closer than `radius` (m) to the body surface,
-  /// sorted by vertex (deterministic).
+  /// sorted by vertex (deterministic), at most one per vertex (its closest body triangle; the
+  /// sweeps and the trajectory adjoint project and reverse contacts in parallel on that basis).
   std::vector<Contact> detect(const RowMatX3d& x, const VecXd& inv_mass, double radius) const;
   /// Signed distance of p to the body (m): positive outside, by the closest triangle's normal.
   double signed_distance(const Vec3& p) const;
