@@ -6,10 +6,9 @@
 // adjoint of z (beyond the identity pass-through of x) is then
 //   z̄ = ∇_z ψ(z),  ψ(z) = Σ_a C̄_a C_a(z) + Σ_a Ḡ_a · ∇ₓC_a(z),
 // i.e. Jᵀ C̄ + Σ_a (∂²C_a/∂z∂x) Ḡ_aᵀ, the Hessian-vector products of the constraint without its
-// Hessian. The reverse kernels evaluate ψ with first-order forward-mode duals (autodiff/jet.hpp)
-// on the closed-form ∇ₓC of each constraint, which is exact (no truncation) and needs O(nz)
-// per operation instead of the O(nz²) of a second-order jet. All sizes are fixed at compile time
-// (no heap allocation per projection).
+// Hessian. The reverse kernels (trajectory_adjoint.cpp) differentiate ψ in closed form: the
+// stretch block and the hinge specialise this function to their structure, the seam and the
+// contact call it. All sizes are fixed at compile time (no heap allocation per projection).
 #pragma once
 #include <Eigen/Dense>
 

@@ -79,12 +79,6 @@ void split(const std::vector<std::vector<int>>& colors, ConstraintKind kind, con
 
 }  // namespace
 
-int SweepPlan::max_lane_blocks() const {
-  std::size_t n = 0;
-  for (const auto& l : lanes) n = std::max(n, l.size());
-  return static_cast<int>(n);
-}
-
 SweepPlan build_sweep_plan(const ClothModel& m, const SweepPlanParams& p) {
   SweepPlan plan;
   const int nf = static_cast<int>(m.faces.rows()), nh = static_cast<int>(m.hinges.rows()),

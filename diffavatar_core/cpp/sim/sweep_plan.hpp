@@ -42,10 +42,6 @@ struct SweepPlan {
   int total_constraints = 0;
 
   bool lane_parallel() const { return lanes.size() > 1; }
-  int max_lane_blocks() const;
-  /// Tape slots of one sweep: the lanes share slots 0..max_lane_blocks−1 (each fills its own
-  /// rows), the interface follows, and the last slot is before the contacts.
-  int num_slots() const { return max_lane_blocks() + static_cast<int>(interface.size()) + 1; }
 };
 
 struct SweepPlanParams {
