@@ -1,7 +1,7 @@
 // Trajectory adjoint (issue 4, mode 1; DiffXPBD, supplement Eq. 1–4): the exact reverse pass of
 // `steps` XPBD steps. Each step is replayed forward from its start state while recording every
-// projection's inputs (StepTape: the multipliers at each sweep's start and, per projection in
-// plan order, the positions it read and a hinge's angle; sim/sweep_tape.hpp); then the sweeps
+// projection's inputs (StepTape: per sweep, one record per projection in plan order — the
+// positions it read, its multipliers and a hinge's angle; sim/sweep_tape.hpp); then the sweeps
 // are reversed from the last, projection by projection (adjoint/projection_vjp.hpp), reading the
 // records sequentially, in the sweep plan's blocks (parallel as in the forward sweep). Memory is
 // bounded by checkpointing: the forward pass keeps the state every `checkpoint_every` steps; the
