@@ -2,6 +2,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <optional>
 #include <stdexcept>
 
 #include "adjoint/projection_vjp.hpp"
@@ -104,8 +105,7 @@ T contact_cg(const V3<T>& p, const V3<T>& b0, const V3<T>& b1, const V3<T>& b2, 
 struct RestDerivs {
   std::vector<Eigen::Matrix<double, 4, 6>> dB;  // ∂(B00, B01, B10, B11)/∂(u0, u1, u2) per triangle, B in the grain frame
   std::vector<Eigen::Matrix<double, 6, 1>> dA;  // ∂Ā/∂u per triangle
-  std::vector<Eigen::Matrix<double, 8, 1>> dw;  // ∂w/∂u per hinge
-  VecXd w;                                      // hinge weight (as from hinge_weight)
+  std::vector<Eigen::Matrix<double, 8, 1>> dw;  // ∂w/∂u per hinge (w itself: RestCache::hinge_weight)
 
   explicit RestDerivs(const XpbdSolver& S) {
     const ClothModel& m = S.model();
@@ -123,14 +123,11 @@ struct RestDerivs {
       dA[t] = rest_area(ug).g;
     }
     dw.resize(nh);
-    w.resize(nh);
     for (int h = 0; h < nh; ++h) {
       Dual<8> u[4][2];
       for (int q = 0; q < 4; ++q)
         for (int d = 0; d < 2; ++d) u[q][d] = Dual<8>::var(rest(m.hinges(h, q), d), 2 * q + d);
-      Dual<8> wj = hinge_weight(u[0], u[1], u[2], u[3]);
-      w[h] = wj.v;
-      dw[h] = wj.g;
+      dw[h] = hinge_weight(u[0], u[1], u[2], u[3]).g;
     }
   }
 };
@@ -179,12 +176,12 @@ struct Adjoints {
   std::vector<HingeConst> hinge;
 };
 
-/// Calls f(kind, block, first position, record offset) for every block in plan order.
+/// Calls f(block, position of its first constraint) for every block in plan order.
 template <class F>
 void for_each_block(const SweepPlan& plan, const SweepTapeLayout& L, F f) {
   for (std::size_t l = 0; l < plan.lanes.size(); ++l)
-    for (std::size_t k = 0; k < plan.lanes[l].size(); ++k) f(plan.lanes[l][k], L.lane_first[l][k], L.lane[l][k]);
-  for (std::size_t k = 0; k < plan.interface.size(); ++k) f(plan.interface[k], L.interface_first[k], L.interface[k]);
+    for (std::size_t k = 0; k < plan.lanes[l].size(); ++k) f(plan.lanes[l][k], L.lane_first[l][k]);
+  for (std::size_t k = 0; k < plan.interface.size(); ++k) f(plan.interface[k], L.interface_first[k]);
 }
 
 void build_constants(const XpbdSolver& S, double dt2, Adjoints& a) {
@@ -196,7 +193,7 @@ void build_constants(const XpbdSolver& S, double dt2, Adjoints& a) {
     throw std::logic_error("trajectory adjoint: the sweep plan does not project every constraint once");
   a.tri.resize(L.count[0]);
   a.hinge.resize(L.count[1]);
-  for_each_block(S.sweep_plan(), L, [&](const SweepBlock& b, int first, std::size_t) {
+  for_each_block(S.sweep_plan(), L, [&](const SweepBlock& b, int first) {
     for (std::size_t j = 0; j < b.idx.size(); ++j) {
       const int id = b.idx[j];
       if (b.kind == ConstraintKind::kStretch) {
@@ -511,7 +508,7 @@ void finish_control(const XpbdSolver& S, const RestDerivs& rd, const Adjoints& a
   }
   for (std::size_t pos = 0; pos < a.hinge.size(); ++pos) {
     const int h = a.hinge[pos].hinge;
-    const double wbar = a.hinge_acc(pos, 1) / rd.w[h];
+    const double wbar = a.hinge_acc(pos, 1) / S.cache().hinge_weight[h];
     for (int q = 0; q < 4; ++q) g.rest.row(m.hinges(h, q)) += wbar * rd.dw[h].segment<2>(2 * q).transpose();
     g.bend_stiffness[m.hinge_group[h]] += a.hinge_acc(pos, 0);
   }
@@ -522,8 +519,7 @@ void finish_control(const XpbdSolver& S, const RestDerivs& rd, const Adjoints& a
 // contacts their step detected, so a replay does not search the body again.
 struct PosVel {
   RowMatX3d x, v;
-  std::vector<Contact> contacts;  // those the step from this state detected (replayed, not re-detected)
-  bool has_contacts = false;
+  std::optional<std::vector<Contact>> contacts;  // those the step from this state detected, once known
 };
 ClothState restore(const XpbdSolver& S, const PosVel& c) {
   ClothState s = S.make_state(c.x);
@@ -550,12 +546,9 @@ TrajectoryGradient trajectory_adjoint(XpbdSolver& S, const ClothState& start, co
   ClothState s = start;
   for (int t = 0; t < steps; ++t) {
     rc.check("trajectory adjoint (forward)");
-    if (t % k == 0) ckpt.push_back({s.x, s.v, {}, false});
+    if (t % k == 0) ckpt.push_back({s.x, s.v, std::nullopt});
     S.step(s, p);
-    if (t % k == 0) {
-      ckpt.back().contacts = S.contacts();
-      ckpt.back().has_contacts = true;
-    }
+    if (t % k == 0) ckpt.back().contacts = S.contacts();
     rc.report({"trajectory forward", t + 1, 2L * steps, 0.0});
   }
   TrajectoryGradient out;
@@ -572,32 +565,25 @@ TrajectoryGradient trajectory_adjoint(XpbdSolver& S, const ClothState& start, co
   a.hinge_acc.setZero(a.hinge.size(), 2);
   const RestDerivs rd(S);
   double peak = 0.0, base = 0.0;
-  for (const PosVel& c : ckpt) base += 2 * mb(c.x) + c.contacts.size() * sizeof(Contact) / 1048576.0;
+  for (const PosVel& c : ckpt) base += 2 * mb(c.x) + c.contacts->size() * sizeof(Contact) / 1048576.0;
   StepTape tape;  // one step's tape, its buffers reused from step to step
   for (int seg = static_cast<int>(ckpt.size()) - 1; seg >= 0; --seg) {
     int t_begin = seg * k, t_end = std::min(steps, t_begin + k);
     std::vector<PosVel> starts;
     ClothState r = restore(S, ckpt[seg]);
     for (int t = t_begin; t < t_end; ++t) {
-      starts.push_back({r.x, r.v, {}, false});
-      if (t == t_begin) {
-        starts.back().contacts = ckpt[seg].contacts;
-        starts.back().has_contacts = ckpt[seg].has_contacts;
-      }
+      starts.push_back({r.x, r.v, t == t_begin ? ckpt[seg].contacts : std::nullopt});
       if (t + 1 < t_end) {
-        const bool known = starts.back().has_contacts;
-        S.step(r, p, nullptr, known ? &starts.back().contacts : nullptr);
-        if (!known) {
-          starts.back().contacts = S.contacts();
-          starts.back().has_contacts = true;
-        }
+        PosVel& st = starts.back();
+        S.step(r, p, nullptr, st.contacts ? &*st.contacts : nullptr);
+        if (!st.contacts) st.contacts = S.contacts();
       }
     }
     for (int t = t_end - 1; t >= t_begin; --t) {
       rc.check("trajectory adjoint (backward)");
       const PosVel& st = starts[t - t_begin];
       ClothState q = restore(S, st);
-      S.step(q, p, &tape, st.has_contacts ? &st.contacts : nullptr);
+      S.step(q, p, &tape, st.contacts ? &*st.contacts : nullptr);
       reverse_step(S, tape, p, a, vbar);
       const double tape_mb = tape.mb();
       out.step_tape_mb = std::max(out.step_tape_mb, tape_mb);
