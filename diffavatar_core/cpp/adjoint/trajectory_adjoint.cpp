@@ -44,51 +44,51 @@ void rest_inverse(const T u[3][2], T B[4]) {
 /// (the same test as the forward projection, which then skipped the hinge).
 struct HingeGeom {
   using V = Eigen::Vector3d;
-  V e, ca, da, cb, db, eh, m1, m2;
-  double el, q1, q2, t1, t2, t3, t4;
+  V e, ca, da, eh, n1, n2, m1, m2;
+  double el, q1, q2, t3, t4, iel, iq1, iq2;  // iel = 1/|e|, iq = 1/q
   bool ok;
   V g[4];  // ∇_a θ, ∇_b θ, ∇_c θ, ∇_d θ
 
+  // With c − b = (c − a) − e and e·ê = |e|: (c−b)·ê = t3 − |e|, (d−b)·ê = t4 − |e|, and
+  // ∇_a θ = −(∇_b θ + ∇_c θ + ∇_d θ) (translation invariance); likewise for the tangent.
   explicit HingeGeom(const double* x) {
     const Eigen::Map<const V> a(x), b(x + 3), c(x + 6), d(x + 9);
     e = b - a;
     ca = c - a;
     da = d - a;
-    cb = c - b;
-    db = d - b;
     el = e.norm();
-    const V n1 = e.cross(ca), n2 = da.cross(e);
+    n1 = e.cross(ca);
+    n2 = da.cross(e);
     q1 = n1.squaredNorm();
     q2 = n2.squaredNorm();
     ok = !(el < 1e-12 || q1 < 1e-30 || q2 < 1e-30);
     if (!ok) return;
-    eh = e / el;
-    m1 = n1 / q1;
-    m2 = n2 / q2;
-    t1 = cb.dot(eh);
-    t2 = db.dot(eh);
+    iel = 1.0 / el;
+    iq1 = 1.0 / q1;
+    iq2 = 1.0 / q2;
+    eh = e * iel;
+    m1 = n1 * iq1;
+    m2 = n2 * iq2;
     t3 = ca.dot(eh);
     t4 = da.dot(eh);
-    g[0] = -t1 * m1 - t2 * m2;
     g[1] = t3 * m1 + t4 * m2;
     g[2] = -el * m1;
     g[3] = -el * m2;
+    g[0] = -(g[1] + g[2] + g[3]);
   }
   /// gt[k] = D(∇_k θ)[v], v = (v_a, v_b, v_c, v_d) as 12 doubles.
   void tangent(const double* v, V gt[4]) const {
     const Eigen::Map<const V> va(v), vb(v + 3), vc(v + 6), vd(v + 9);
-    const V de = vb - va, dca = vc - va, dda = vd - va, dcb = vc - vb, ddb = vd - vb;
-    const V n1 = m1 * q1, n2 = m2 * q2;
+    const V de = vb - va, dca = vc - va, dda = vd - va;
     const V dn1 = de.cross(ca) + e.cross(dca), dn2 = dda.cross(e) + da.cross(de);
     const double del = eh.dot(de);
-    const V deh = (de - eh * del) / el;
-    const V dm1 = (dn1 - m1 * (2.0 * n1.dot(dn1))) / q1, dm2 = (dn2 - m2 * (2.0 * n2.dot(dn2))) / q2;
-    const double dt1 = dcb.dot(eh) + cb.dot(deh), dt2 = ddb.dot(eh) + db.dot(deh);
+    const V deh = (de - eh * del) * iel;
+    const V dm1 = (dn1 - m1 * (2.0 * n1.dot(dn1))) * iq1, dm2 = (dn2 - m2 * (2.0 * n2.dot(dn2))) * iq2;
     const double dt3 = dca.dot(eh) + ca.dot(deh), dt4 = dda.dot(eh) + da.dot(deh);
-    gt[0] = -dt1 * m1 - t1 * dm1 - dt2 * m2 - t2 * dm2;
     gt[1] = dt3 * m1 + t3 * dm1 + dt4 * m2 + t4 * dm2;
     gt[2] = -del * m1 - el * dm1;
     gt[3] = -del * m2 - el * dm2;
+    gt[0] = -(gt[1] + gt[2] + gt[3]);
   }
 };
 
@@ -142,7 +142,8 @@ struct TriConst {
   double w[3];    // inverse masses (1/kg)
   double B[4];    // B = D̄⁻¹ in the grain frame, as (B00, B01, B10, B11) (1/m)
   double at[3];   // α̃ = α/(Ā dt²)
-  double area;    // Ā (m²)
+  double ad;      // 1/(Ā dt²) = ∂α̃/∂α (1/(m² s²))
+  double ia;      // 1/Ā (1/m²)
 };
 struct HingeConst {
   int v[4];
@@ -150,6 +151,8 @@ struct HingeConst {
   double w[4];
   double k;       // bending stiffness of its group (N·m)
   double kw;      // k times the rest weight; ≤ 0: the forward sweep skips the hinge
+  double at;      // α̃ = 1/(k w dt²) when kw > 0
+  double ik;      // 1/k
   double theta0;  // rest angle (rad)
 };
 
@@ -208,8 +211,10 @@ void build_constants(const XpbdSolver& S, double dt2, Adjoints& a) {
         K.B[1] = B(0, 1);
         K.B[2] = B(1, 0);
         K.B[3] = B(1, 1);
-        K.area = rc.tri[id].area;
-        for (int q = 0; q < 3; ++q) K.at[q] = c.stretch_compliance(m.tri_group[id], q) / (K.area * dt2);
+        const double area = rc.tri[id].area;
+        for (int q = 0; q < 3; ++q) K.at[q] = c.stretch_compliance(m.tri_group[id], q) / (area * dt2);
+        K.ad = 1.0 / (area * dt2);
+        K.ia = 1.0 / area;
       } else if (b.kind == ConstraintKind::kBending) {
         HingeConst& K = a.hinge[first + j];
         K.hinge = id;
@@ -219,6 +224,8 @@ void build_constants(const XpbdSolver& S, double dt2, Adjoints& a) {
         }
         K.k = c.bend_stiffness[m.hinge_group[id]];
         K.kw = K.k * rc.hinge_weight[id];
+        K.at = K.kw > 0.0 ? 1.0 / (K.kw * dt2) : 0.0;
+        K.ik = 1.0 / K.k;
         K.theta0 = m.hinge_rest_angle[id];
       }
     }
@@ -240,7 +247,7 @@ void build_constants(const XpbdSolver& S, double dt2, Adjoints& a) {
 //   ∂(Σ_k c_k V_k)/∂B = V_1 − V_0 or V_2 − V_0 (E_a1, E_a2). The rest coordinates follow from
 //   ∂ψ/∂B and ∂ψ/∂Ā in finish_control. `rec`: 3 corners, λ (sim/sweep_tape.hpp); `acc`, `lbar`:
 //   this position's sums and multiplier adjoint.
-void reverse_tri(const TriConst& K, const double* rec, double dt2, double* acc, double* lbar, RowMatX3d& ax) {
+void reverse_tri(const TriConst& K, const double* rec, double* acc, double* lbar, RowMatX3d& ax) {
   using V = Eigen::Vector3d;
   const double* w = K.w;
   V sv[3];
@@ -271,7 +278,15 @@ void reverse_tri(const TriConst& K, const double* rec, double dt2, double* acc, 
   A(0, 1) = A(1, 0) = s01 * ff01;
   A(0, 2) = A(2, 0) = 0.5 * (s00 * ff01 + s01 * ff00);
   A(1, 2) = A(2, 1) = 0.5 * (s01 * ff11 + s11 * ff01);
-  const Eigen::Matrix3d Ainv = A.inverse();  // SPD 3×3, closed form as in the forward projection
+  // A is symmetric positive definite: its inverse from the six distinct cofactors.
+  Eigen::Matrix3d Ainv;
+  {
+    const double c00 = A(1, 1) * A(2, 2) - A(1, 2) * A(1, 2), c01 = A(0, 2) * A(1, 2) - A(0, 1) * A(2, 2),
+                 c02 = A(0, 1) * A(1, 2) - A(0, 2) * A(1, 1), c11 = A(0, 0) * A(2, 2) - A(0, 2) * A(0, 2),
+                 c12 = A(0, 1) * A(0, 2) - A(0, 0) * A(1, 2), c22 = A(0, 0) * A(1, 1) - A(0, 1) * A(0, 1);
+    const double id = 1.0 / (A(0, 0) * c00 + A(0, 1) * c01 + A(0, 2) * c02);
+    Ainv << c00 * id, c01 * id, c02 * id, c01 * id, c11 * id, c12 * id, c02 * id, c12 * id, c22 * id;
+  }
   const V dl = -(Ainv * (C + at.cwiseProduct(lm)));
   Eigen::Map<V> lb(lbar);
   const V dlbar = V(f0.dot(sg0), f1.dot(sg1), 0.5 * (f1.dot(sg0) + f0.dot(sg1))) + lb;
@@ -288,9 +303,10 @@ void reverse_tri(const TriConst& K, const double* rec, double dt2, double* acc, 
   const V S0 = Cbar[0] * f0 + 0.5 * Cbar[2] * f1 + P0 + 0.5 * Q1;
   const V S1 = Cbar[1] * f1 + 0.5 * Cbar[2] * f0 + P1 + 0.5 * Q0;
   // E_aj = Ḡ_aj − Ḡ_a0 (j = 1, 2)
-  auto E = [&](int q, int j) -> V {
-    return dl[q] * (sv[j] - sv[0]) + (w[j] * c0[j] - w[0] * c0[0]) * U[q] + (w[j] * c1[j] - w[0] * c1[0]) * W[q];
-  };
+  const V ds[3] = {V::Zero(), sv[1] - sv[0], sv[2] - sv[0]};
+  const double e0[3] = {0.0, w[1] * c0[1] - w[0] * c0[0], w[2] * c0[2] - w[0] * c0[0]};
+  const double e1[3] = {0.0, w[1] * c1[1] - w[0] * c1[0], w[2] * c1[2] - w[0] * c1[0]};
+  auto E = [&](int q, int j) -> V { return dl[q] * ds[j] + e0[j] * U[q] + e1[j] * W[q]; };
   const V E01 = E(0, 1), E02 = E(0, 2), E11 = E(1, 1), E12 = E(1, 2), E21 = E(2, 1), E22 = E(2, 2);
   acc[0] += d1.dot(S0) + f0.dot(E01) + 0.5 * f1.dot(E21);  // B00
   acc[1] += d1.dot(S1) + f1.dot(E11) + 0.5 * f0.dot(E21);  // B01
@@ -300,8 +316,8 @@ void reverse_tri(const TriConst& K, const double* rec, double dt2, double* acc, 
   // (of A) has diagonal −u∘Δλ, so that of α̃ is −u∘(Δλ + λ).
   for (int q = 0; q < 3; ++q) {
     const double atbar = -u[q] * (dl[q] + lm[q]);
-    acc[5 + q] += atbar / (K.area * dt2);
-    acc[4] -= atbar * at[q] / K.area;
+    acc[5 + q] += atbar * K.ad;
+    acc[4] -= atbar * at[q] * K.ia;
   }
   for (int k = 0; k < 3; ++k) ax.row(K.v[k]) += (c0[k] * S0 + c1[k] * S1).transpose();
   lb -= at.cwiseProduct(u);  // λ̄ = λ̄' − α̃∘u
@@ -310,14 +326,14 @@ void reverse_tri(const TriConst& K, const double* rec, double dt2, double* acc, 
 // The hinge angle depends on x only (the rest shape enters through the weight w in α̃), so
 // z̄ = Gᵀ C̄ + D(∇θ)[Ḡ]. `rec`: 4 vertices, θ, λ. acc = (∂φ/∂k, ∂φ/∂w · w) with α̃ = 1/(k w dt²):
 // ∂α̃/∂k = −α̃/k and ∂α̃/∂w = −α̃/w; the second is divided by w in finish_control.
-void reverse_hinge(const HingeConst& K, const double* rec, double dt2, double* acc, double* lbar, RowMatX3d& ax) {
+void reverse_hinge(const HingeConst& K, const double* rec, double* acc, double* lbar, RowMatX3d& ax) {
   if (!(K.kw > 0.0)) return;
   const HingeGeom geo(rec);
   if (!geo.ok) return;
   // block_adjoint (projection_vjp.hpp) for one row: A = Σ w_q|g_q|² + α̃, Δλ = −(C + α̃λ)/A,
   // s_q = w_q x̄'_q, u = (Σ g_q·s_q + λ̄')/A, Ḡ_q = Δλ s_q − 2uΔλ w_q g_q, C̄ = −u,
   // α̃'s adjoint −u(Δλ + λ), λ̄ = λ̄' − α̃u.
-  const double at = 1.0 / (K.kw * dt2), lm = rec[13];
+  const double at = K.at, lm = rec[13];
   Eigen::Vector3d sv[4];
   double A = at, gs = 0.0;
   for (int q = 0; q < 4; ++q) {
@@ -325,15 +341,16 @@ void reverse_hinge(const HingeConst& K, const double* rec, double dt2, double* a
     A += K.w[q] * geo.g[q].squaredNorm();
     gs += geo.g[q].dot(sv[q]);
   }
-  const double dl = -(rec[12] - K.theta0 + at * lm) / A;
-  const double u = (gs + *lbar) / A;
+  const double iA = 1.0 / A;
+  const double dl = -(rec[12] - K.theta0 + at * lm) * iA;
+  const double u = (gs + *lbar) * iA;
   double gbar[12];
   for (int q = 0; q < 4; ++q)
     Eigen::Map<Eigen::Vector3d>(gbar + 3 * q) = dl * sv[q] - (2.0 * u * dl * K.w[q]) * geo.g[q];
   Eigen::Vector3d gt[4];
   geo.tangent(gbar, gt);
   const double atbar = -u * (dl + lm);
-  acc[0] -= atbar * at / K.k;
+  acc[0] -= atbar * at * K.ik;
   acc[1] -= atbar * at;
   for (int q = 0; q < 4; ++q) ax.row(K.v[q]) += (-u * geo.g[q] + gt[q]).transpose();
   *lbar -= at * u;
@@ -411,12 +428,12 @@ void reverse_block(const XpbdSolver& S, const double* rec, const SweepBlock& b, 
   if (b.kind == ConstraintKind::kStretch) {
 #pragma omp parallel for schedule(static) if (par)
     for (int j = 0; j < n; ++j)
-      reverse_tri(a.tri[first + j], rec + j * st, dt2, a.tri_acc.row(first + j).data(), a.lam_tri.row(first + j).data(),
+      reverse_tri(a.tri[first + j], rec + j * st, a.tri_acc.row(first + j).data(), a.lam_tri.row(first + j).data(),
                   a.x);
   } else if (b.kind == ConstraintKind::kBending) {
 #pragma omp parallel for schedule(static) if (par)
     for (int j = 0; j < n; ++j)
-      reverse_hinge(a.hinge[first + j], rec + j * st, dt2, a.hinge_acc.row(first + j).data(), &a.lam_hinge[first + j],
+      reverse_hinge(a.hinge[first + j], rec + j * st, a.hinge_acc.row(first + j).data(), &a.lam_hinge[first + j],
                     a.x);
   } else {
 #pragma omp parallel for schedule(static) if (par)

@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 
+#include "common/stream_store.hpp"
 #include "sim/bending_kernel.hpp"
 #include "sim/cloth_energy.hpp"
 #include "sim/contact_kernel.hpp"
@@ -66,8 +67,10 @@ void XpbdSolver::project(ConstraintKind kind, int c, RowMatX3d& x, ClothState& s
       w[k] = m.inv_mass[i];
     }
     if (rec) {
-      for (int k = 0; k < 3; ++k) Eigen::Map<Vec3>(rec + 3 * k) = p[k];
-      for (int a = 0; a < 3; ++a) rec[9 + a] = s.lambda_tri(c, a);
+      double r[12];
+      for (int k = 0; k < 3; ++k) Eigen::Map<Vec3>(r + 3 * k) = p[k];
+      for (int a = 0; a < 3; ++a) r[9 + a] = s.lambda_tri(c, a);
+      stream_store(rec, r, 12);
     }
     Vec3 at = control_.stretch_compliance.row(m.tri_group[c]).transpose() / (cache_.tri[c].area * dt2);
     project_stretch(pp, w, cache_.tri[c], at, &s.lambda_tri(c, 0));
@@ -84,19 +87,23 @@ void XpbdSolver::project(ConstraintKind kind, int c, RowMatX3d& x, ClothState& s
       pp[q] = &p[q];
       w[q] = m.inv_mass[i];
     }
+    double r[14];
     if (rec) {
-      for (int q = 0; q < 4; ++q) Eigen::Map<Vec3>(rec + 3 * q) = p[q];
-      rec[13] = s.lambda_hinge[c];
+      for (int q = 0; q < 4; ++q) Eigen::Map<Vec3>(r + 3 * q) = p[q];
+      r[13] = s.lambda_hinge[c];
     }
-    project_bending(pp, w, m.hinge_rest_angle[c], 1.0 / (kw * dt2), &s.lambda_hinge[c], rec ? rec + 12 : nullptr);
+    project_bending(pp, w, m.hinge_rest_angle[c], 1.0 / (kw * dt2), &s.lambda_hinge[c], rec ? r + 12 : nullptr);
+    if (rec) stream_store(rec, r, 14);
     for (int q = 0; q < 4; ++q) x.row(m.hinges(c, q)) = p[q].transpose();
   } else {
     int a = m.seams(c, 0), b = m.seams(c, 1);
     Vec3 xa = x.row(a).transpose(), xb = x.row(b).transpose();
     if (rec) {
-      Eigen::Map<Vec3>{rec} = xa;
-      Eigen::Map<Vec3>(rec + 3) = xb;
-      for (int a3 = 0; a3 < 3; ++a3) rec[6 + a3] = s.lambda_seam(c, a3);
+      double r[9];
+      Eigen::Map<Vec3>{r} = xa;
+      Eigen::Map<Vec3>(r + 3) = xb;
+      for (int a3 = 0; a3 < 3; ++a3) r[6 + a3] = s.lambda_seam(c, a3);
+      stream_store(rec, r, 9);
     }
     project_seam(xa, xb, m.inv_mass[a], m.inv_mass[b], m.seam_compliance / dt2, &s.lambda_seam(c, 0));
     x.row(a) = xa.transpose();
@@ -137,8 +144,12 @@ void XpbdSolver::sweep(ClothState& s, double dt, SweepTape* tape) {
       const SweepBlock& b = blocks[k];
       const std::size_t off = layout_.lane[0][k];
       const int n = static_cast<int>(b.idx.size());
-#pragma omp parallel for schedule(static) if (n >= kParallelMin)
-      for (int j = 0; j < n; ++j) project(b.kind, b.idx[j], x, s, dt2, rec(off, b, j));
+#pragma omp parallel if (n >= kParallelMin)
+      {
+#pragma omp for schedule(static)
+        for (int j = 0; j < n; ++j) project(b.kind, b.idx[j], x, s, dt2, rec(off, b, j));
+        if (tape) stream_fence();  // the records' streaming stores, before the region's barrier
+      }
     }
 #pragma omp parallel for schedule(static) if (nc >= kParallelMin)
     for (int j = 0; j < nc; ++j) contact(j);
@@ -169,6 +180,7 @@ void XpbdSolver::sweep(ClothState& s, double dt, SweepTape* tape) {
     }
 #pragma omp for schedule(static)
     for (int j = 0; j < nc; ++j) contact(j);
+    if (tape) stream_fence();  // the records' streaming stores, before the region's barrier
   }
 }
 
