@@ -13,22 +13,25 @@ Definitions (also written into the JSON under "definitions"):
   forward_step_s          one XPBD step without tape (XpbdSolver.step): the best of 2 runs of the
                           --traj-steps steps the adjoint covers, per step, from the state the
                           trajectory adjoint starts at (the initial placement).
-  trajectory_adjoint_s    trajectory_gradient() over the drape's XPBD steps, extrapolated from
-                          runs over 1 and --traj-steps steps (k = 1): fixed_s + per_step_s × the
-                          drape's steps (extrapolated: true). per_step_s = (wall(T) − wall(1))/(T − 1)
-                          is the marginal cost of a step (forward, replay with recording, reverse);
-                          fixed_s = wall(1) − per_step_s is the per-call cost (rest derivatives,
-                          first touch of the tape). trajectory_over_forward = per_step_s /
-                          forward_step_s (both measured); trajectory_over_forward_incl_fixed adds
-                          fixed_s / T.
+  trajectory_adjoint_s    the backward pass: run.gradient() over a record_trajectory() run (the
+                          forward pass that keeps the checkpoints, run once for the loss anyway,
+                          is timed apart as record_s), extrapolated from runs over 1 and
+                          --traj-steps steps (k = 1): fixed_s + per_step_s × the drape's steps
+                          (extrapolated: true). per_step_s = (bw(T) − bw(1))/(T − 1) is the marginal
+                          cost of a step (replay with recording, reverse); fixed_s = bw(1) −
+                          per_step_s is the per-call cost (rest derivatives, first touch of the
+                          tape). trajectory_over_forward = per_step_s / forward_step_s;
+                          trajectory_end_to_end_over_forward adds the recording forward pass
+                          (what trajectory_gradient() costs in one call).
   peak_memory_mb          peak_tape_mb reported by trajectory_gradient (checkpoints + one segment
                           of step starts + one step's tape): measured at --traj-steps without
                           checkpointing (k = 1: every state kept) and with (k = --traj-steps),
                           and extrapolated to a 2,000-step drape (k = 1 vs k = ceil(sqrt(2000)))
                           with the model peak = tape_step + 2 state (ceil(T/k) + k).
-  full_trajectory         (--full-steps N) trajectory_gradient() end to end over N steps, for each
-                          k of --full-k (default ceil(sqrt(N))): measured wall, peak tape and RSS,
-                          next to the same N forward steps timed in the same process.
+  full_trajectory         (--full-steps N) over N steps, for each k of --full-k (default
+                          ceil(sqrt(N))): the recording forward pass and the backward pass measured
+                          (record_s, trajectory_adjoint_s, end_to_end_s), peak tape and RSS, next to
+                          the same N forward steps timed in the same process.
 """
 from __future__ import annotations
 
@@ -46,7 +49,7 @@ import numpy as np  # noqa: E402
 
 import diffavatar_core as dc  # noqa: E402
 from diffavatar_core import _core  # noqa: E402
-from diffavatar_core.adjoint import equilibrium_gradient, trajectory_gradient  # noqa: E402
+from diffavatar_core.adjoint import equilibrium_gradient, record_trajectory, trajectory_gradient  # noqa: E402
 from diffavatar_core.sim import ClothMaterial  # noqa: E402
 from diffavatar_core.sim.cloth import _sim_params  # noqa: E402
 from diffavatar_core.sim.drape_job import build  # noqa: E402
@@ -203,19 +206,26 @@ def full_trajectory(cloth, g, W, p, a):
     for k in sorted(ks, reverse=True):  # the lighter run first: ru_maxrss is a high-water mark
         rss0 = rss_mb()
         t0 = time.perf_counter()
-        gt = trajectory_gradient(cloth, N, W, checkpoint_every=k, dt=DT, iterations=a.iterations)
-        wall = time.perf_counter() - t0
+        run = record_trajectory(cloth, N, checkpoint_every=k, dt=DT, iterations=a.iterations)
+        t1 = time.perf_counter()
+        gt = run.gradient(W)
+        t2 = time.perf_counter()
         finite = all(bool(np.all(np.isfinite(np.asarray(gt[key])))) for key in
                      ("rest", "stretch_compliance", "bend_stiffness", "body_vertices", "x0", "v0"))
-        runs.append(dict(checkpoint_every=k, trajectory_adjoint_s=wall, trajectory_over_forward=wall / forward_s,
+        runs.append(dict(checkpoint_every=k, record_s=t1 - t0, trajectory_adjoint_s=t2 - t1,
+                         trajectory_over_forward=(t2 - t1) / forward_s,
+                         end_to_end_s=t2 - t0, end_to_end_over_forward=(t2 - t0) / forward_s,
                          peak_tape_mb=float(gt["peak_tape_mb"]), step_tape_mb=float(gt["step_tape_mb"]),
+                         checkpoint_mb=float(run.checkpoint_mb),
                          process_peak_rss_mb=rss_mb(), process_peak_rss_growth_mb=rss_mb() - rss0,
                          gradient_finite=finite,
                          final_state_finite=bool(np.all(np.isfinite(np.asarray(gt["x_final"]))))))
+        del run
     return dict(steps=N, iterations_per_step=a.iterations, forward_steps_s=forward_s, runs=runs,
-                note="measured end to end (no extrapolation): forward pass storing checkpoints, then per segment "
-                     "a re-run storing step starts (none when k = 1), then per step a replay recording every "
-                     "projection and the reverse pass")
+                note="measured (no extrapolation): record_s = the forward pass storing checkpoints "
+                     "(record_trajectory); trajectory_adjoint_s = the backward pass over it (run.gradient: per segment "
+                     "a re-run storing step starts, none when k = 1, then per step a replay recording every projection "
+                     "and the reverse); end_to_end = both, as trajectory_gradient() runs them")
 
 
 def main(argv=None):
@@ -233,10 +243,14 @@ def main(argv=None):
         ("equilibrium_adjoint_s", "wall s of equilibrium_gradient() at the draped state, loss sum(W*x) with random W"),
         ("forward_step_s", "wall s per XPBD step without tape (XpbdSolver.step) over the traj_steps steps the adjoint "
                            "covers, best of 2 runs, from the initial placement"),
-        ("trajectory_adjoint_s", "trajectory_gradient() wall s extrapolated to the drape's XPBD steps: fixed_s + "
-                                 "per_step_s × steps, from k=1 runs over 1 and traj_steps steps"),
-        ("trajectory_over_forward", "per_step_s (the marginal cost of one step: forward, replay with recording, "
+        ("trajectory_adjoint_s", "the backward pass (run.gradient() over a record_trajectory() run) wall s "
+                                 "extrapolated to the drape's XPBD steps: fixed_s + per_step_s × steps, from k=1 runs "
+                                 "over 1 and traj_steps steps; like equilibrium_adjoint_s it excludes the forward "
+                                 "computation the loss needs anyway"),
+        ("trajectory_over_forward", "per_step_s (the backward pass's marginal cost of one step: replay with recording, "
                                     "reverse) / forward_step_s (both measured)"),
+        ("trajectory_end_to_end_over_forward", "the same with the forward pass that records the checkpoints "
+                                               "(trajectory_gradient() in one call) / forward_step_s"),
         ("equilibrium_over_forward", "equilibrium_adjoint_s / forward_s"),
         ("peak_memory_mb", "peak_tape_mb of trajectory_gradient (checkpoints + segment starts + one step's tape)"),
     )}
@@ -283,12 +297,18 @@ def main(argv=None):
         for steps, k in ((T, T), (1, 1), (T, 1)):  # the lighter runs first: ru_maxrss is a high-water mark
             rss0 = rss_mb()
             t0 = time.perf_counter()
-            gt = trajectory_gradient(cloth, steps, W, checkpoint_every=k, dt=DT, iterations=a.iterations)
-            runs[(steps, k)] = dict(steps=steps, checkpoint_every=k, wall_s=time.perf_counter() - t0,
-                                    peak_tape_mb=float(gt["peak_tape_mb"]), step_tape_mb=float(gt["step_tape_mb"]),
+            run = record_trajectory(cloth, steps, checkpoint_every=k, dt=DT, iterations=a.iterations)
+            t1 = time.perf_counter()
+            gt = run.gradient(W)
+            t2 = time.perf_counter()
+            runs[(steps, k)] = dict(steps=steps, checkpoint_every=k, record_s=t1 - t0, backward_s=t2 - t1,
+                                    wall_s=t2 - t0, peak_tape_mb=float(gt["peak_tape_mb"]),
+                                    step_tape_mb=float(gt["step_tape_mb"]),
                                     process_peak_rss_growth_mb=rss_mb() - rss0)
-        per_step = (runs[(T, 1)]["wall_s"] - runs[(1, 1)]["wall_s"]) / (T - 1)
-        fixed = runs[(1, 1)]["wall_s"] - per_step
+            del run
+        per_step_e2e = (runs[(T, 1)]["wall_s"] - runs[(1, 1)]["wall_s"]) / (T - 1)
+        per_step = (runs[(T, 1)]["backward_s"] - runs[(1, 1)]["backward_s"]) / (T - 1)
+        fixed = runs[(1, 1)]["backward_s"] - per_step
         state_mb = V * 3 * 8 / 1048576.0
 
         def slots(steps, k):
@@ -301,6 +321,7 @@ def main(argv=None):
             trajectory_adjoint_s=fixed + per_step * r.steps, extrapolated=True,
             trajectory_over_forward=per_step / forward_step_s,
             trajectory_over_forward_incl_fixed=(per_step + fixed / T) / forward_step_s,
+            trajectory_end_to_end_over_forward=per_step_e2e / forward_step_s,
             peak_memory_mb={
                 "measured": {"steps": T, "without_checkpointing": runs[(T, 1)]["peak_tape_mb"],
                              f"with_checkpointing_k{T}": runs[(T, T)]["peak_tape_mb"]},
@@ -311,7 +332,7 @@ def main(argv=None):
                     "state_mb": state_mb},
             },
             trajectory_adjoint={"measured_steps": T, "iterations_per_step": a.iterations,
-                                "per_step_s": per_step, "fixed_s": fixed,
+                                "per_step_s": per_step, "fixed_s": fixed, "per_step_end_to_end_s": per_step_e2e,
                                 "runs": [v for v in runs.values()],
                                 "extrapolated_to_steps": r.steps,
                                 "note": "fixed_s + per_step_s × the drape's steps; per_step_s is the marginal "

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from diffavatar_core import _core
-from diffavatar_core.adjoint import trajectory_gradient
+from diffavatar_core.adjoint import record_trajectory, trajectory_gradient, trajectory_memory_mb
 from diffavatar_core.sim import ClothMaterial
 from diffavatar_core.sim.scenes import hanging_sheet, sheet_against_sphere
 
@@ -133,6 +133,83 @@ def test_checkpointing_gives_the_same_gradient(free_sheet):
         for key in ("rest", "stretch_compliance", "bend_stiffness", "x0", "v0"):
             np.testing.assert_allclose(gk[key], g[key], rtol=0, atol=1e-10 * np.abs(g[key]).max())
         np.testing.assert_array_equal(gk["x_final"], g["x_final"])
+
+
+def test_checkpoint_interval_from_a_memory_budget(free_sheet):
+    """Without checkpoint_every the adjoint takes the smallest (fastest) k whose peak fits the
+    memory budget: k = 1 when it fits (the same computation as k = 1 given), a larger k under a
+    tighter budget (its measured peak within the budget, the gradient that of k = 1 to 1e-10),
+    and a clear error when none fits."""
+    cloth, W, start, g = free_sheet  # g: checkpoint_every not given
+    assert g["checkpoint_every"] == 1
+    ga = trajectory_gradient(cloth, T, W, checkpoint_every=1, **KW)
+    for key in ("rest", "stretch_compliance", "bend_stiffness", "x0", "v0"):
+        np.testing.assert_array_equal(ga[key], g[key])
+    it = KW["iterations"]
+    assert trajectory_memory_mb(cloth, T, 1, it) >= g["peak_tape_mb"]  # the model bounds the measured peak
+    budget = trajectory_memory_mb(cloth, T, 2, it)
+    assert budget < trajectory_memory_mb(cloth, T, 1, it)
+    gb = trajectory_gradient(cloth, T, W, memory_budget_mb=budget, **KW)
+    assert gb["checkpoint_every"] == 2 and gb["peak_tape_mb"] <= budget
+    for key in ("rest", "stretch_compliance", "bend_stiffness", "x0", "v0"):
+        np.testing.assert_allclose(gb[key], g[key], rtol=0, atol=1e-10 * np.abs(g[key]).max())
+    with pytest.raises(ValueError, match="memory budget"):
+        trajectory_gradient(cloth, T, W, memory_budget_mb=0.5 * trajectory_memory_mb(cloth, T, 3, it), **KW)
+
+
+def test_recorded_run_and_a_nonlinear_loss(free_sheet):
+    """record_trajectory + gradient is the one-call adjoint split in two (bit-identical, k = 1
+    and 3). A loss that is not linear in x_T, φ = ½|x_T − target|², gets ∂φ/∂x_T = x_T − target
+    from the recorded run and its gradient from the same run, checked against central
+    differences; the run can be reversed again with another loss; after the control is set
+    again the run is refused."""
+    cloth, W, start, g = free_sheet
+    keys = ("rest", "stretch_compliance", "bend_stiffness", "x0", "v0")
+    for k in (1, 3):
+        run = record_trajectory(cloth, T, checkpoint_every=k, **KW)
+        assert run.checkpoint_every == k and run.steps == T
+        ref = g if k == 1 else trajectory_gradient(cloth, T, W, checkpoint_every=k, **KW)
+        np.testing.assert_array_equal(run.x_final, ref["x_final"])
+        gr = run.gradient(W)
+        for key in keys:
+            np.testing.assert_array_equal(gr[key], ref[key])
+    np.testing.assert_array_equal(cloth.state.x, start.x)
+
+    target = np.array(start.x) + 0.01 * np.random.default_rng(5).standard_normal(start.x.shape)
+
+    def phi(**change):
+        c0 = cloth.control
+        c = cloth.control
+        for key, value in change.items():
+            setattr(c, key, value)
+        cloth.solver.set_control(c)
+        s = start.copy()
+        cloth.solver.step(s, _params(), T)
+        cloth.solver.set_control(c0)
+        return 0.5 * float(np.sum((np.array(s.x) - target) ** 2))
+
+    run = record_trajectory(cloth, T, **KW)
+    gq = run.gradient(np.array(run.x_final) - target)
+    g2 = run.gradient(W)  # reversed again with the linear loss
+    for key in keys:
+        np.testing.assert_array_equal(g2[key], g[key])
+    cloth.solver.set_control(cloth.control)  # (the finite differences below set it too)
+    with pytest.raises(ValueError, match="set since the forward run"):
+        run.gradient(W)
+    rest = np.array(cloth.control.rest)
+    for idx in [(3, 0), (7, 1), (12, 0), (18, 1)]:
+        a, b = rest.copy(), rest.copy()
+        a[idx] += 1e-6
+        b[idx] -= 1e-6
+        fd = (phi(rest=a) - phi(rest=b)) / 2e-6
+        assert abs(gq["rest"][idx] - fd) <= 1e-4 * max(abs(fd), 1e-6 * np.abs(gq["rest"]).max()), (idx, gq["rest"][idx], fd)
+    kb = np.array(cloth.control.bend_stiffness)
+    h = 1e-5 * kb[0]
+    a, b = kb.copy(), kb.copy()
+    a[0] += h
+    b[0] -= h
+    fd = (phi(bend_stiffness=a) - phi(bend_stiffness=b)) / (2 * h)
+    assert abs(gq["bend_stiffness"][0] - fd) <= 1e-4 * abs(fd)
 
 
 def test_invariants(free_sheet):

@@ -531,13 +531,9 @@ void finish_control(const XpbdSolver& S, const RestDerivs& rd, const Adjoints& a
   }
 }
 
-// Checkpoints and segment starts keep positions and velocities (a step zeroes its multipliers
-// before the first sweep, so they carry no information across steps) and, once known, the
-// contacts their step detected, so a replay does not search the body again.
-struct PosVel {
-  RowMatX3d x, v;
-  std::optional<std::vector<Contact>> contacts;  // those the step from this state detected, once known
-};
+// Checkpoints and segment starts keep positions and velocities and, once known, the contacts
+// their step detected, so a replay does not search the body again.
+using PosVel = TrajectoryCheckpoints::Entry;
 ClothState restore(const XpbdSolver& S, const PosVel& c) {
   ClothState s = S.make_state(c.x);
   s.v = c.v;
@@ -551,25 +547,54 @@ double mb(const M& a) {
 
 }  // namespace
 
-TrajectoryGradient trajectory_adjoint(XpbdSolver& S, const ClothState& start, const SimParams& p, int steps,
-                                      const RowMatX3d& dphi_dx, const RowMatX3d& dphi_dv, int k, RunControl& rc) {
+double TrajectoryCheckpoints::mb() const {
+  double d = 0.0;
+  for (const Entry& e : states)
+    d += (e.x.size() + e.v.size()) * 8.0 / 1048576.0 +
+         (e.contacts ? e.contacts->size() * sizeof(Contact) / 1048576.0 : 0.0);
+  return d;
+}
+
+namespace {
+
+TrajectoryCheckpoints forward_pass(XpbdSolver& S, const ClothState& start, const SimParams& p, int steps, int k,
+                                   RunControl& rc, long total) {
   auto t0 = std::chrono::steady_clock::now();
-  const ClothModel& m = S.model();
   if (steps < 1 || k < 1) throw std::invalid_argument("trajectory adjoint: steps and checkpoint_every must be >= 1");
-  if (dphi_dx.rows() != m.num_vertices || dphi_dv.rows() != m.num_vertices)
-    throw std::invalid_argument("trajectory adjoint: dphi_dx and dphi_dv must be #V×3");
-  // Forward with checkpoints.
-  std::vector<PosVel> ckpt;
+  TrajectoryCheckpoints fw;
+  fw.steps = steps;
+  fw.every = k;
+  fw.params = p;
+  fw.solver_revision = S.revision();
   ClothState s = start;
   for (int t = 0; t < steps; ++t) {
     rc.check("trajectory adjoint (forward)");
-    if (t % k == 0) ckpt.push_back({s.x, s.v, std::nullopt});
+    if (t % k == 0) fw.states.push_back({s.x, s.v, std::nullopt});
     S.step(s, p);
-    if (t % k == 0) ckpt.back().contacts = S.contacts();
-    rc.report({"trajectory forward", t + 1, 2L * steps, 0.0});
+    if (t % k == 0) fw.states.back().contacts = S.contacts();
+    rc.report({"trajectory forward", t + 1, total, 0.0});
   }
+  fw.x_final = s.x;
+  fw.v_final = s.v;
+  fw.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return fw;
+}
+
+TrajectoryGradient backward_pass(XpbdSolver& S, const TrajectoryCheckpoints& fw, const RowMatX3d& dphi_dx,
+                                 const RowMatX3d& dphi_dv, RunControl& rc, long done0, long total) {
+  auto t0 = std::chrono::steady_clock::now();
+  const ClothModel& m = S.model();
+  if (fw.solver_revision != S.revision())
+    throw std::invalid_argument(
+        "trajectory adjoint: the solver's control or sweep plan was set since the forward run (or the run was "
+        "recorded with another solver); record the trajectory again");
+  if (dphi_dx.rows() != m.num_vertices || dphi_dv.rows() != m.num_vertices)
+    throw std::invalid_argument("trajectory adjoint: dphi_dx and dphi_dv must be #V×3");
+  const SimParams& p = fw.params;
+  const int steps = fw.steps, k = fw.every;
+  const std::vector<PosVel>& ckpt = fw.states;
   TrajectoryGradient out;
-  out.x_final = s.x;
+  out.x_final = fw.x_final;
   Adjoints a;
   a.x = dphi_dx;
   RowMatX3d vbar = dphi_dv;
@@ -581,8 +606,8 @@ TrajectoryGradient trajectory_adjoint(XpbdSolver& S, const ClothState& start, co
   a.tri_acc.setZero(a.tri.size(), 8);
   a.hinge_acc.setZero(a.hinge.size(), 2);
   const RestDerivs rd(S);
-  double peak = 0.0, base = 0.0;
-  for (const PosVel& c : ckpt) base += 2 * mb(c.x) + c.contacts->size() * sizeof(Contact) / 1048576.0;
+  double peak = 0.0;
+  const double base = fw.mb(), state_mb = 2 * mb(fw.x_final);
   StepTape tape;  // one step's tape, its buffers reused from step to step
   for (int seg = static_cast<int>(ckpt.size()) - 1; seg >= 0; --seg) {
     int t_begin = seg * k, t_end = std::min(steps, t_begin + k);
@@ -604,8 +629,8 @@ TrajectoryGradient trajectory_adjoint(XpbdSolver& S, const ClothState& start, co
       reverse_step(S, tape, p, a, vbar);
       const double tape_mb = tape.mb();
       out.step_tape_mb = std::max(out.step_tape_mb, tape_mb);
-      peak = std::max(peak, base + starts.size() * 2 * mb(start.x) + tape_mb);
-      rc.report({"trajectory backward", 2L * steps - t, 2L * steps, 0.0});
+      peak = std::max(peak, base + starts.size() * state_mb + tape_mb);
+      rc.report({"trajectory backward", done0 + steps - t, total, 0.0});
     }
   }
   finish_control(S, rd, a, a.g);
@@ -613,6 +638,31 @@ TrajectoryGradient trajectory_adjoint(XpbdSolver& S, const ClothState& start, co
   out.x0 = a.x;
   out.v0 = vbar;
   out.peak_tape_mb = peak;
+  out.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return out;
+}
+
+}  // namespace
+
+TrajectoryCheckpoints trajectory_forward(XpbdSolver& S, const ClothState& start, const SimParams& p, int steps, int k,
+                                         RunControl& rc) {
+  return forward_pass(S, start, p, steps, k, rc, steps);
+}
+
+TrajectoryGradient trajectory_backward(XpbdSolver& S, const TrajectoryCheckpoints& fw, const RowMatX3d& dphi_dx,
+                                       const RowMatX3d& dphi_dv, RunControl& rc) {
+  return backward_pass(S, fw, dphi_dx, dphi_dv, rc, 0, fw.steps);
+}
+
+TrajectoryGradient trajectory_adjoint(XpbdSolver& S, const ClothState& start, const SimParams& p, int steps,
+                                      const RowMatX3d& dphi_dx, const RowMatX3d& dphi_dv, int k, RunControl& rc) {
+  auto t0 = std::chrono::steady_clock::now();
+  const ClothModel& m = S.model();
+  if (steps < 1 || k < 1) throw std::invalid_argument("trajectory adjoint: steps and checkpoint_every must be >= 1");
+  if (dphi_dx.rows() != m.num_vertices || dphi_dv.rows() != m.num_vertices)
+    throw std::invalid_argument("trajectory adjoint: dphi_dx and dphi_dv must be #V×3");
+  const TrajectoryCheckpoints fw = forward_pass(S, start, p, steps, k, rc, 2L * steps);
+  TrajectoryGradient out = backward_pass(S, fw, dphi_dx, dphi_dv, rc, steps, 2L * steps);
   out.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return out;
 }

@@ -182,32 +182,72 @@ void bind_sim(py::module_& m) {
            },
            py::arg("x"), py::arg("gravity"));
 
+  auto gradient_dict = [](const TrajectoryGradient& tg) {
+    py::dict d;
+    d["rest"] = tg.control.rest;
+    d["stretch_compliance"] = tg.control.stretch_compliance;
+    d["bend_stiffness"] = tg.control.bend_stiffness;
+    d["body_vertices"] = tg.control.body_vertices;
+    d["x0"] = tg.x0;
+    d["v0"] = tg.v0;
+    d["x_final"] = tg.x_final;
+    d["peak_tape_mb"] = tg.peak_tape_mb;
+    d["step_tape_mb"] = tg.step_tape_mb;
+    d["wall_s"] = tg.wall_s;
+    return d;
+  };
+
   m.def("trajectory_adjoint",
-        [](XpbdSolver& s, const ClothState& start, const SimParams& p, int steps, const RowMatX3d& dphi_dx,
-           const RowMatX3d& dphi_dv, int checkpoint_every, const py::object& progress,
-           std::shared_ptr<CancelToken> cancel) {
+        [gradient_dict](XpbdSolver& s, const ClothState& start, const SimParams& p, int steps,
+                        const RowMatX3d& dphi_dx, const RowMatX3d& dphi_dv, int checkpoint_every,
+                        const py::object& progress, std::shared_ptr<CancelToken> cancel) {
           RunControl rc = make_run_control(progress, cancel);
           TrajectoryGradient tg;
           {
             py::gil_scoped_release nogil;
             tg = trajectory_adjoint(s, start, p, steps, dphi_dx, dphi_dv, checkpoint_every, rc);
           }
-          py::dict d;
-          d["rest"] = tg.control.rest;
-          d["stretch_compliance"] = tg.control.stretch_compliance;
-          d["bend_stiffness"] = tg.control.bend_stiffness;
-          d["body_vertices"] = tg.control.body_vertices;
-          d["x0"] = tg.x0;
-          d["v0"] = tg.v0;
-          d["x_final"] = tg.x_final;
-          d["peak_tape_mb"] = tg.peak_tape_mb;
-          d["step_tape_mb"] = tg.step_tape_mb;
-          d["wall_s"] = tg.wall_s;
-          return d;
+          return gradient_dict(tg);
         },
         py::arg("solver"), py::arg("start"), py::arg("params"), py::arg("steps"), py::arg("dphi_dx"),
         py::arg("dphi_dv"), py::arg("checkpoint_every") = 1, py::arg("progress") = py::none(),
         py::arg("cancel") = nullptr);
+
+  py::class_<TrajectoryCheckpoints, std::shared_ptr<TrajectoryCheckpoints>>(m, "TrajectoryCheckpoints")
+      .def_readonly("steps", &TrajectoryCheckpoints::steps)
+      .def_readonly("checkpoint_every", &TrajectoryCheckpoints::every)
+      .def_readonly("x_final", &TrajectoryCheckpoints::x_final)
+      .def_readonly("v_final", &TrajectoryCheckpoints::v_final)
+      .def_readonly("wall_s", &TrajectoryCheckpoints::wall_s)
+      .def_property_readonly("checkpoint_mb", &TrajectoryCheckpoints::mb);
+
+  m.def("trajectory_forward",
+        [](XpbdSolver& s, const ClothState& start, const SimParams& p, int steps, int checkpoint_every,
+           const py::object& progress, std::shared_ptr<CancelToken> cancel) {
+          RunControl rc = make_run_control(progress, cancel);
+          auto fw = std::make_shared<TrajectoryCheckpoints>();
+          {
+            py::gil_scoped_release nogil;
+            *fw = trajectory_forward(s, start, p, steps, checkpoint_every, rc);
+          }
+          return fw;
+        },
+        py::arg("solver"), py::arg("start"), py::arg("params"), py::arg("steps"), py::arg("checkpoint_every") = 1,
+        py::arg("progress") = py::none(), py::arg("cancel") = nullptr);
+
+  m.def("trajectory_backward",
+        [gradient_dict](XpbdSolver& s, const TrajectoryCheckpoints& fw, const RowMatX3d& dphi_dx,
+                        const RowMatX3d& dphi_dv, const py::object& progress, std::shared_ptr<CancelToken> cancel) {
+          RunControl rc = make_run_control(progress, cancel);
+          TrajectoryGradient tg;
+          {
+            py::gil_scoped_release nogil;
+            tg = trajectory_backward(s, fw, dphi_dx, dphi_dv, rc);
+          }
+          return gradient_dict(tg);
+        },
+        py::arg("solver"), py::arg("checkpoints"), py::arg("dphi_dx"), py::arg("dphi_dv"),
+        py::arg("progress") = py::none(), py::arg("cancel") = nullptr);
 
   m.def("equilibrium_adjoint",
         [](const XpbdSolver& s, const RowMatX3d& x, const RowMatX3d& dphi, const Vec3& g, const py::object& progress,

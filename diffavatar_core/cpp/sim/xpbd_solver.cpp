@@ -1,6 +1,7 @@
 #include "sim/xpbd_solver.hpp"
 
 #include <Eigen/SparseCholesky>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 
@@ -28,6 +29,12 @@ void XpbdSolver::set_control(ClothControl control) {
   cache_ = prepare_control(model_, control);
   control_ = std::move(control);
   collider_.set_vertices(control_.body_vertices);
+  bump_revision();
+}
+
+void XpbdSolver::bump_revision() {
+  static std::atomic<std::uint64_t> next{1};
+  revision_ = next.fetch_add(1);
 }
 
 ClothState XpbdSolver::make_state(const RowMatX3d& x) const {
@@ -50,6 +57,7 @@ void XpbdSolver::set_sweep_plan(const SweepPlanParams& p) {
   if (p.min_constraints < 0) throw std::invalid_argument("sweep plan: min_constraints must be >= 0");
   plan_ = build_sweep_plan(model_, p);
   layout_ = sweep_tape_layout(plan_);
+  bump_revision();
 }
 
 // Projects constraint c of `kind` (Eq. 1–2): reads and writes only its own vertices' rows of x

@@ -7,6 +7,7 @@
 // per sweep on large ones; either way the result does not depend on the thread count.
 // Units: m, kg, s.
 #pragma once
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -85,6 +86,9 @@ class XpbdSolver {
   void set_sweep_plan(const SweepPlanParams& p);
   const SweepPlan& sweep_plan() const { return plan_; }
   const SweepTapeLayout& tape_layout() const { return layout_; }
+  /// Changes whenever the control or the sweep plan does (unique across solvers): what a
+  /// recorded trajectory (adjoint/trajectory_adjoint.hpp) was computed with.
+  std::uint64_t revision() const { return revision_; }
   DrapeReport drape(ClothState& s, const SimParams& p, const DrapeParams& d, RunControl& rc);
   /// Newton refinement of s.x to ∇ₓE = 0; returns iterations used; sets residual. The anchors
   /// of the friction proxy are set to s.x unless keep_anchor (then the stored ones are reused).
@@ -113,6 +117,8 @@ class XpbdSolver {
   std::vector<Contact> contacts_;
   RowMatX3d anchor_;
   double anchor_k_ = 0.0;
+  std::uint64_t revision_ = 0;
+  void bump_revision();
 };
 
 }  // namespace diffavatar
