@@ -41,9 +41,11 @@ def trajectory_memory_mb(cloth: Cloth, steps: int, checkpoint_every: int, iterat
     4 per contact, at most one contact per vertex; sim/sweep_tape.hpp) plus, per stored state —
     ceil(steps/k) checkpoints and up to k segment starts — positions and velocities (2 × 3V
     doubles) and its contacts (8 bytes each)."""
+    steps = _validate.positive_int("steps", steps)
+    iterations = _validate.positive_int("iterations", iterations)
+    k = min(_validate.positive_int("checkpoint_every", checkpoint_every), steps)
     m = cloth.model
     V, nf, nh, ns = int(m.num_vertices), len(m.faces), len(m.hinges), len(m.seams)
-    k = min(int(checkpoint_every), int(steps))
     tape = iterations * (12 * nf + 14 * nh + 9 * ns + 4 * V) * 8 + 8 * V
     state = 2 * 3 * V * 8 + 8 * V
     return (tape + (math.ceil(steps / k) + k) * state) / 2**20

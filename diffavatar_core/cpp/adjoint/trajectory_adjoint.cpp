@@ -658,7 +658,7 @@ TrajectoryGradient trajectory_adjoint(XpbdSolver& S, const ClothState& start, co
                                       const RowMatX3d& dphi_dx, const RowMatX3d& dphi_dv, int k, RunControl& rc) {
   auto t0 = std::chrono::steady_clock::now();
   const ClothModel& m = S.model();
-  if (steps < 1 || k < 1) throw std::invalid_argument("trajectory adjoint: steps and checkpoint_every must be >= 1");
+  // checked before the forward pass too, so a wrong argument fails before any simulation
   if (dphi_dx.rows() != m.num_vertices || dphi_dv.rows() != m.num_vertices)
     throw std::invalid_argument("trajectory adjoint: dphi_dx and dphi_dv must be #V×3");
   const TrajectoryCheckpoints fw = forward_pass(S, start, p, steps, k, rc, 2L * steps);

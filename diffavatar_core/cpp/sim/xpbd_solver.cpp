@@ -98,6 +98,7 @@ void XpbdSolver::project(ConstraintKind kind, int c, RowMatX3d& x, ClothState& s
     double r[14];
     if (rec) {
       for (int q = 0; q < 4; ++q) Eigen::Map<Vec3>(r + 3 * q) = p[q];
+      r[12] = 0.0;  // θ, set by the projection unless the hinge is degenerate (then the reverse skips it)
       r[13] = s.lambda_hinge[c];
     }
     project_bending(pp, w, m.hinge_rest_angle[c], 1.0 / (kw * dt2), &s.lambda_hinge[c], rec ? r + 12 : nullptr);
