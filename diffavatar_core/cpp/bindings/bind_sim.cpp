@@ -182,12 +182,17 @@ void bind_sim(py::module_& m) {
            },
            py::arg("x"), py::arg("gravity"));
 
-  auto gradient_dict = [](const TrajectoryGradient& tg) {
+  // dφ/d{rest, stretch_compliance, bend_stiffness, body_vertices}, as both adjoints return it
+  auto control_dict = [](const ControlGradient& g) {
     py::dict d;
-    d["rest"] = tg.control.rest;
-    d["stretch_compliance"] = tg.control.stretch_compliance;
-    d["bend_stiffness"] = tg.control.bend_stiffness;
-    d["body_vertices"] = tg.control.body_vertices;
+    d["rest"] = g.rest;
+    d["stretch_compliance"] = g.stretch_compliance;
+    d["bend_stiffness"] = g.bend_stiffness;
+    d["body_vertices"] = g.body_vertices;
+    return d;
+  };
+  auto gradient_dict = [control_dict](const TrajectoryGradient& tg) {
+    py::dict d = control_dict(tg.control);
     d["x0"] = tg.x0;
     d["v0"] = tg.v0;
     d["x_final"] = tg.x_final;
@@ -250,8 +255,8 @@ void bind_sim(py::module_& m) {
         py::arg("progress") = py::none(), py::arg("cancel") = nullptr);
 
   m.def("equilibrium_adjoint",
-        [](const XpbdSolver& s, const RowMatX3d& x, const RowMatX3d& dphi, const Vec3& g, const py::object& progress,
-           std::shared_ptr<CancelToken> cancel) {
+        [control_dict](const XpbdSolver& s, const RowMatX3d& x, const RowMatX3d& dphi, const Vec3& g,
+                       const py::object& progress, std::shared_ptr<CancelToken> cancel) {
           RunControl rc = make_run_control(progress, cancel);
           AdjointReport rep;
           ControlGradient cg;
@@ -259,11 +264,7 @@ void bind_sim(py::module_& m) {
             py::gil_scoped_release nogil;
             cg = equilibrium_adjoint(s, x, dphi, g, rc, &rep);
           }
-          py::dict d;
-          d["rest"] = cg.rest;
-          d["stretch_compliance"] = cg.stretch_compliance;
-          d["bend_stiffness"] = cg.bend_stiffness;
-          d["body_vertices"] = cg.body_vertices;
+          py::dict d = control_dict(cg);
           d["solve_residual"] = rep.solve_residual;
           d["dofs"] = rep.dofs;
           d["wall_s"] = rep.wall_s;
