@@ -24,13 +24,20 @@ extent and horizontal principal axes (twelve yaw candidates; the three best are 
 rigidly with the stature coefficient, and the best of those starts the full fit).
 
 Garment-only scans (the body is not visible): the garment is a shell around the body, so
-  E_g = 1/M Σ_i [w_i (d_i − c)² + κ min(0, d_i − c_min)²],  d_i = n_i·(p_i − x_i)
-the signed garment-to-body distance: quadratic about the clearance c where the garment is closer
-(symmetric: a one-sided penalty makes a smaller, shorter body the cheapest fit), Geman–McClure
-where it is further (loose regions such as a skirt do not pull the body out), and κ =
-penetration_weight below the minimum gap c_min (the body about to poke through). Bone scales
-are held at 1 and the priors are weighted like the data (about residual² / samples / prior
-variance: the torso's shape decides ν where it is seen, the prior where it is not). The placement
+  E_g = 1/M Σ_i [a_i w_i (d_i − c)² + κ min(0, d_i − c_min)²],  d_i = ±|p_i − x_i|
+the signed garment-to-body distance: Euclidean, + outside, to the surface a garment can cover
+(not the head, hands or feet: a foot caught in a trouser leg held the leg too short). Its
+gradient −u_i·∂x_i/∂θ, u_i the unit direction from x_i to p_i, is exact; the face-normal
+distance of the full-scan term jumps where the closest point passes from one face of an edge
+to the other, and LM stalled on those jumps under garments. The term is quadratic about the clearance c where the garment is closer (symmetric: a one-sided
+penalty makes a smaller, shorter body the cheapest fit), Geman–McClure where it is further
+(loose regions do not pull the body out), and κ = penetration_weight below the minimum gap
+c_min (the body about to poke through). a_i = 1 except on skirts, where only the top
+skirt_band (waistband and hips) attracts the body and the rest, hanging free, only has to stay
+outside it. Bone scales are held at 1 except the torso's under tops and dresses, which show its
+proportions, and the priors are weighted like the data (about residual² / samples / prior
+variance: the torso's shape decides ν where it is seen, the prior where it is not; a skirt
+shows so little that its shape prior is stronger). The placement
 puts the garment's top at the shoulders (tops, dresses) or the waist (skirts, trousers:
 garment_type); the best placement and the best one facing the other way (a garment's front and
 back look alike) are both fitted for a few iterations and the lower robust energy goes on.
@@ -89,6 +96,8 @@ class FitOptions:
     garment_shape_prior: float = 5e-8
     garment_pose_prior: float = 5e-6
     multi_start_iterations: int = 12     # garment-only: iterations of each of the two starts
+    skirt_band: float = 0.2              # garment-only skirts: the top band (m) that attracts the body
+    skirt_shape_prior: float = 5e-6      # garment-only skirts: α_ν (a skirt shows the waist and hips only)
     seed: int = 0
 
 
@@ -120,6 +129,12 @@ def _jacobian_rows(model: BodyModel, p: BodyParams, idx) -> np.ndarray:
     return model.jacobian(p, uniq)[inv.reshape(idx.shape)]
 
 
+def _wrapped(rotvec) -> np.ndarray:
+    """The same rotation as an axis-angle vector of angle ≤ π: near |r| = 2π the map from r to
+    the rotation is singular (every axis gives the identity there) and LM steps lose their way."""
+    return Rotation.from_rotvec(np.asarray(rotvec, np.float64)).as_rotvec()
+
+
 def _face_normals(X, F):
     n = np.cross(X[F[:, 1]] - X[F[:, 0]], X[F[:, 2]] - X[F[:, 0]])
     return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-18)
@@ -143,6 +158,10 @@ class _Fitter:
         if garment:
             free[sl["bone_scales"]] = False
         self.free = free
+        # garment-only: the surface a garment can cover, and per-point attraction weights a_i
+        self.cover_faces = garment_faces(model) if garment else np.ascontiguousarray(model.faces)
+        self.attract = np.ones(len(scan))
+        self.shape_prior = opts.garment_shape_prior if garment else opts.shape_prior
         self.sl = sl
         self.K, self.J = K, J
         self.pose_boost = 1.0
@@ -154,22 +173,31 @@ class _Fitter:
     def _terms(self, p: BodyParams, sigma: float, idx_scan, idx_body, with_jac: bool):
         m, o = self.m, self.opts
         X = m.pose(p)
-        F = m.faces
+        F = self.cover_faces
         S = self.scan[idx_scan]
         tri, bary, cp = _core.closest_points_on_mesh(X, F, np.ascontiguousarray(S))
         nf = _face_normals(X, F[tri])
         d = np.einsum("ij,ij->i", S - cp, nf)              # signed, + outside the body
+        if self.garment:
+            # Euclidean signed distance; its direction u replaces the face normal (exact gradient)
+            diff = S - cp
+            dist = np.linalg.norm(diff, axis=1)
+            sgn = np.where(d < 0, -1.0, 1.0)
+            ok = dist > 1e-12
+            nf = np.where(ok[:, None], sgn[:, None] * diff / np.where(ok, dist, 1.0)[:, None], nf)
+            d = sgn * dist
         rows, res, wts, rho = [], [], [], 0.0
         if self.garment:
             # symmetric about the clearance (an asymmetric one shrinks the body: a smaller, shorter
             # body is the cheapest way to stay clear everywhere), Geman–McClure outside it, and
             # κ below the minimum clearance (the garment about to enter the body)
             r1 = d - o.clearance
-            w1 = np.where(r1 < 0, 1.0, _gm_weight(r1, sigma))
+            a = self.attract[idx_scan]
+            w1 = np.where(r1 < 0, 1.0, a * _gm_weight(r1, sigma))
             r2 = np.minimum(d - o.min_clearance, 0.0)
             kin = o.penetration_weight
-            rho += float(np.sum(np.where(r1 < 0, r1 * r1, _gm_rho(r1, sigma)) + kin * r2 * r2)) / len(S)
-            res += [-r1, -r2]                                # n·(x − p) + c, n·(x − p) + c_min
+            rho += float(np.sum(np.where(r1 < 0, r1 * r1, a * _gm_rho(r1, sigma)) + kin * r2 * r2)) / len(S)
+            res += [-r1, -r2]                                # u·(x − p) + c, u·(x − p) + c_min
             wts += [w1 / len(S), np.full(len(S), kin / len(S))]
         else:
             r1 = -d
@@ -221,7 +249,7 @@ class _Fitter:
     def _priors(self, p: BodyParams):
         """(residuals, weights, Jacobian rows) of the priors (pose prior × self.pose_boost)."""
         o, m = self.opts, self.m
-        a_nu = o.garment_shape_prior if self.garment else o.shape_prior
+        a_nu = self.shape_prior
         a_psi = (o.garment_pose_prior if self.garment else o.pose_prior) * self.pose_boost
         n = m.num_params
         r = np.concatenate([p.shape, p.pose.reshape(-1), p.bone_scales - 1])
@@ -241,6 +269,7 @@ class _Fitter:
         p.pose = m.clamp_pose(p.pose)
         p.bone_scales = np.clip(p.bone_scales, *o.bone_scale_range)
         p.shape = np.clip(p.shape, -o.shape_range, o.shape_range)
+        p.rotation = _wrapped(p.rotation)
         return p
 
     def run(self, p: BodyParams, iterations: int, sigmas, free=None, n_scan=None, n_body=None,
@@ -368,6 +397,8 @@ def fit_body(scan_vertices, scan_faces=None, model: BodyModel | None = None, *, 
     h0, dh = stature(e0), stature(e1) - stature(e0)
 
     fitter = _Fitter(model, P, F, o, garment_only, progress=None)
+    if garment_only:
+        _garment_setup(fitter, model, P, hi[1], garment_class_of(garment_type) if garment_type else "upper")
     free_rigid = np.zeros(model.num_params, bool)
     sl = model.param_slices()
     free_rigid[sl["rotation"]] = True
@@ -381,7 +412,7 @@ def fit_body(scan_vertices, scan_faces=None, model: BodyModel | None = None, *, 
 
     def initial(yaw):
         p = model.zero_params()
-        p.rotation[:] = [0, yaw, 0]
+        p.rotation[:] = _wrapped([0, yaw, 0])
         R = Rotation.from_rotvec(p.rotation).as_matrix()
         if not garment_only:
             p.shape[0] = np.clip((height_scan - h0) / dh, -o.shape_range, o.shape_range)
@@ -436,6 +467,26 @@ def fit_body(scan_vertices, scan_faces=None, model: BodyModel | None = None, *, 
     return FitResult(params=p, to_core=A, history=history, rms=rms)
 
 
+#: Bones whose lengths a garment of each class shows (freed in garment-only fits): the torso's
+#: under tops and dresses. Trousers are not listed: freeing the legs' bones let them trade
+#: length for shape and ended up inside the trouser legs.
+GARMENT_BONES = {"upper": ("spine_1", "spine_2", "spine_3", "spine_4", "chest", "clavicle_left", "clavicle_right"),
+                 "dress": ("spine_1", "spine_2", "spine_3", "spine_4", "chest", "clavicle_left", "clavicle_right"),
+                 "skirt": (), "pants": ()}
+
+
+def _garment_setup(fitter: _Fitter, model: BodyModel, P: np.ndarray, top: float, cls: str) -> None:
+    """Garment-only specifics of class cls: the bones it shows are freed (models with the default
+    skeleton), and a skirt attracts the body with its top band only, under a stronger shape prior."""
+    names = model.joint_names
+    for n in GARMENT_BONES[cls]:
+        if n in names:
+            fitter.free[fitter.sl["bone_scales"].start + names.index(n)] = True
+    if cls == "skirt":
+        fitter.attract = (P[:, 1] > top - fitter.opts.skirt_band).astype(np.float64)
+        fitter.shape_prior = fitter.opts.skirt_shape_prior
+
+
 def inside_fraction(model: BodyModel, params: BodyParams, points) -> float:
     """Fraction of points (N,3, m) inside the posed body (signed by the closest face normal)."""
     X = model.pose(params)
@@ -469,6 +520,18 @@ def penetration_pairs(model: BodyModel) -> list:
     return [(verts("elbow_left", "wrist_left"), torso), (verts("elbow_right", "wrist_right"), torso),
             (verts("knee_left", "ankle_left"), faces("hip_right", "knee_right", "ankle_right")),
             (verts("knee_right", "ankle_right"), faces("hip_left", "knee_left", "ankle_left"))]
+
+
+def garment_faces(model: BodyModel) -> np.ndarray:
+    """Faces of the body a garment can cover: all but the head's, hands' and feet's (faces with a
+    vertex skinned mostly to the head, a wrist or an ankle). All faces for models without the
+    default skeleton's joint names."""
+    names = model.joint_names
+    bare = ("head", "wrist_left", "wrist_right", "ankle_left", "ankle_right")
+    if not set(bare) <= set(names):
+        return np.ascontiguousarray(model.faces)
+    out = np.isin(np.argmax(model.weights, axis=1), [names.index(n) for n in bare])
+    return np.ascontiguousarray(model.faces[~out[model.faces].any(axis=1)])
 
 
 def self_penetration_depth(model: BodyModel, params: BodyParams) -> float:

@@ -5,23 +5,16 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from diffavatar_core.body import BodyModel, BodyParams
-from diffavatar_core.body.fitting import fit_body, inside_fraction, scan_to_core
+from diffavatar_core.body.synthetic import (OFFSET_GARMENTS, TORSO, offset_garment_case, random_body,
+                                            region_garment, stature)
+from diffavatar_core.body.fitting import (GARMENT_BONES, FitOptions, _Fitter, fit_body, garment_faces,
+                                          inside_fraction, scan_to_core)
 from diffavatar_core.metrics import sample_surface
 
 
 @pytest.fixture(scope="module")
 def model():
     return BodyModel.default()
-
-
-def random_body(model, rng, shape_sd=0.7, pose_sd=0.12):
-    """Parameters drawn from the prior: ν ~ N(0, shape_sd²), ψ ~ N(0, pose_sd²) clamped to the
-    limits, bone scales 1 ± 2%."""
-    p = model.zero_params()
-    p.shape[:] = rng.normal(scale=shape_sd, size=model.num_shape)
-    p.pose[:] = model.clamp_pose(rng.normal(scale=pose_sd, size=p.pose.shape))
-    p.bone_scales[:] = 1 + rng.normal(scale=0.02, size=model.num_joints)
-    return p
 
 
 def partial_noisy_scan(X, F, rng, n=25000):
@@ -67,61 +60,16 @@ def test_full_scan_round_trip(model, seed):
     assert res.rms < 0.005
 
 
-def _vertex_normals(X, F):
-    fn = np.cross(X[F[:, 1]] - X[F[:, 0]], X[F[:, 2]] - X[F[:, 0]])
-    vn = np.zeros_like(X)
-    for k in range(3):
-        np.add.at(vn, F[:, k], fn)
-    return vn / np.linalg.norm(vn, axis=1, keepdims=True)
-
-
-def region_garment(model, X, offset, joints):
-    """A garment made by offsetting the posed body's surface over the given joints' regions
-    (vertices skinned mostly to them) outward along the vertex normals."""
-    inside = np.isin(np.argmax(model.weights, axis=1), [model.joint_index(n) for n in joints])
-    F = model.faces[inside[model.faces].all(axis=1)]
-    used = np.unique(F)
-    remap = -np.ones(model.num_vertices, np.int64)
-    remap[used] = np.arange(len(used))
-    return X[used] + offset * _vertex_normals(X, model.faces)[used], remap[F]
-
-
-TORSO = ["pelvis", "spine_1", "spine_2", "spine_3", "spine_4", "chest", "clavicle_left", "clavicle_right"]
-
-
 def torso_garment(model, X, offset):
     """A top made by offsetting the posed body's torso surface (pelvis to clavicles) outward."""
     return region_garment(model, X, offset, TORSO)
 
 
-def garment_case(model, seed, joints=TORSO, bone_noise=False):
-    """(truth params, posed truth X, garment G, Fg) in a random world placement (yaw, translation):
-    a body from the prior under a garment offset 1 cm (the fit's default clearance) from it.
-    Bone lengths stay at 1 unless bone_noise: the garment-only fit holds them (no garment shows
-    the legs' and the spine's proportions apart from the shape), so with bone_noise the body is
-    outside what the fit can represent."""
-    rng = np.random.default_rng(seed)
-    truth = random_body(model, rng, pose_sd=0.08)
-    if not bone_noise:
-        truth.bone_scales[:] = 1.0
-    R = Rotation.from_rotvec([0, rng.uniform(-np.pi, np.pi), 0]).as_matrix()
-    t = rng.normal(scale=0.5, size=3)
-    truth.rotation[:] = Rotation.from_matrix(R).as_rotvec()
-    truth.translation[:] = t
-    X = model.pose(truth)
-    G, Fg = region_garment(model, X, 0.01, joints)
-    return truth, X, G, Fg
+garment_case = offset_garment_case
 
 
 def _height(V):
     return V[:, 1].max() - V[:, 1].min()
-
-
-def stature(model, p):
-    """Standing height (m): the body with its shape and bone lengths, joint angles at zero."""
-    q = BodyParams.from_vector(p.to_vector(), model.num_shape, model.num_joints)
-    q.pose[:] = 0.0
-    return _height(model.pose(q))
 
 
 # seed 4: a tall body (1.79 m) that came out 7.4 cm short with the earlier asymmetric clearance
@@ -133,7 +81,61 @@ def test_garment_only_fit_puts_the_body_inside(model, seed):
     assert inside_fraction(model, res.params, G) <= 0.01
     assert abs(_height(model.pose(res.params)) - _height(X)) <= 0.03     # as posed
     assert abs(stature(model, res.params) - stature(model, truth)) <= 0.03
-    np.testing.assert_array_equal(res.params.bone_scales, 1.0)     # held in garment-only mode
+    shown = [model.joint_index(n) for n in GARMENT_BONES["upper"]]
+    hidden = np.setdiff1d(np.arange(model.num_joints), shown)
+    np.testing.assert_array_equal(res.params.bone_scales[hidden], 1.0)     # held: the top hides them
+
+
+# the whole prior, bone lengths included. Trousers seeds 0 and 3-6 ended 14-22 cm short with 2-3%
+# of the garment inside the body before the fit ignored the feet (caught in the trouser legs) and
+# used the Euclidean distance (face-normal distances jump between the faces of an edge: LM stalled)
+@pytest.mark.parametrize("kind", ["top", "trousers"])
+@pytest.mark.parametrize("seed", range(8))
+def test_garment_only_fit_with_bone_lengths_from_the_prior(model, kind, seed):
+    joints, gtype = OFFSET_GARMENTS[kind]
+    truth, X, G, Fg = garment_case(model, seed, joints=joints, bone_noise=True)
+    res = fit_body(100 * G @ ZUP.T, Fg, model=model, units="cm", up="z", garment_only=True, garment_type=gtype)
+    assert inside_fraction(model, res.params, G) <= 0.01
+    # standing height: a top hides the legs' pose and a pair of trousers the spine's, not their lengths
+    assert abs(stature(model, res.params) - stature(model, truth)) <= 0.03
+
+
+def test_garment_faces_leave_out_head_hands_and_feet(model):
+    F = garment_faces(model)
+    dom = np.argmax(model.weights, axis=1)
+    bare = [model.joint_index(n) for n in ("head", "wrist_left", "wrist_right", "ankle_left", "ankle_right")]
+    assert not np.isin(dom[F], bare).any()
+    kept = {tuple(f) for f in F}
+    rest = [f for f in model.faces if not np.isin(dom[f], bare).any()]
+    assert len(rest) == len(F) and all(tuple(f) in kept for f in rest)     # and nothing else
+
+
+def test_garment_distance_jacobian_matches_central_differences(model):
+    """The garment term's residual rows (c − d_i, d_i the Euclidean signed distance to the
+    coverable surface) against central differences in shape, pose, bone scale, rotation and
+    translation, on points whose closest body points lie on edges and vertices as well as faces."""
+    rng = np.random.default_rng(3)
+    p = random_body(model, rng, pose_sd=0.08)
+    X = model.pose(p)
+    G, _ = torso_garment(model, X, 0.01)
+    pts = G[rng.choice(len(G), 60, replace=False)] + rng.normal(scale=0.01, size=(60, 3))
+    f = _Fitter(model, pts, None, FitOptions(), garment=True)
+    idx = np.arange(len(pts))
+    res, _, rows, _, _ = f._terms(p, 0.03, idx, idx[:1], with_jac=True)
+    sl = model.param_slices()
+    cols = [sl["shape"].start, sl["shape"].start + 2, sl["pose"].start + 3 * model.joint_index("spine_2") + 1,
+            sl["bone_scales"].start + model.joint_index("chest"), sl["rotation"].start + 1,
+            sl["translation"].start]
+    x0, h = p.to_vector(), 1e-6
+    for c in cols:
+        r = []
+        for s in (1, -1):
+            x = x0.copy()
+            x[c] += s * h
+            q = BodyParams.from_vector(x, model.num_shape, model.num_joints)
+            r.append(f._terms(q, 0.03, idx, idx[:1], with_jac=False)[0][:len(pts)])
+        fd = (r[0] - r[1]) / (2 * h)
+        np.testing.assert_allclose(rows[:len(pts), c], fd, rtol=1e-5, atol=1e-7 * np.abs(fd).max() + 1e-12)
 
 
 def test_garment_type_places_shorts_at_the_waist(model):
@@ -145,6 +147,28 @@ def test_garment_type_places_shorts_at_the_waist(model):
     hips = [model.joint_index(n) for n in ("pelvis", "hip_left", "hip_right")]
     assert np.linalg.norm(model.joints(res.params)[hips] - model.joints(truth)[hips], axis=1).max() <= 0.02
     assert abs(stature(model, res.params) - stature(model, truth)) <= 0.03
+
+
+def test_draped_skirt_sits_at_the_waist(model):
+    """A skirt draped by the simulator on a body from the prior (the synthetic case of the
+    recovery benchmark: cm, Y up, noise, holes, fragments), fitted under: the body is inside,
+    its waist and hip joints are where the skirt hangs from, and the hidden legs stay plausible.
+    Standing height is not asserted: a skirt does not show it (bench/fit_body.py measures it)."""
+    from diffavatar_core.pipeline.synthetic import make_case
+    c = make_case("skirt", seed=4, model=model)
+    lab = c.scan_labels != 0
+    keep = np.flatnonzero(lab)
+    remap = -np.ones(len(lab), np.int64)
+    remap[keep] = np.arange(len(keep))
+    F = remap[c.scan_faces[lab[c.scan_faces].all(axis=1)]]
+    res = fit_body(c.scan_vertices[keep], F, model=model, units=c.units, up=c.up, garment_type="skirt")
+    p, t = res.params, c.body_params
+    assert inside_fraction(model, p, c.garment_x) <= 0.01
+    waist = np.linalg.norm(np.asarray(model.landmarks(p).waist_center) - np.asarray(model.landmarks(t).waist_center))
+    assert waist <= 0.025, waist
+    hips = [model.joint_index(n) for n in ("pelvis", "hip_left", "hip_right")]
+    assert np.linalg.norm(model.joints(p)[hips] - model.joints(t)[hips], axis=1).max() <= 0.025
+    assert np.abs(p.shape).max() < 3.0                 # within 3 prior standard deviations
 
 
 def test_garment_type_is_checked(model):
