@@ -32,12 +32,18 @@ distance of the full-scan term jumps where the closest point passes from one fac
 to the other, and LM stalled on those jumps under garments. The term is quadratic about the clearance c where the garment is closer (symmetric: a one-sided
 penalty makes a smaller, shorter body the cheapest fit), Geman–McClure where it is further
 (loose regions do not pull the body out), and κ = penetration_weight below the minimum gap
-c_min (the body about to poke through). a_i = 1 except on skirts, where only the top
-skirt_band (waistband and hips) attracts the body and the rest, hanging free, only has to stay
-outside it. Bone scales are held at 1 except the torso's under tops and dresses, which show its
-proportions, and the priors are weighted like the data (about residual² / samples / prior
-variance: the torso's shape decides ν where it is seen, the prior where it is not; a skirt
-shows so little that its shape prior is stronger). The placement
+c_min (the body about to poke through). a_i ∈ {0, 1} says which garment points attract the
+body: a draped garment touches it only where it hangs from (a loose t-shirt's lower half, a
+skirt below the hips hang free, and attracting them inflated the body by up to 13 cm in
+stature). Tops and dresses are fitted twice: first only their top band (top_band: shoulders,
+upper chest) attracts, under a stronger shape prior; then every point whose gap is within
+contact_tolerance of c joins (all of a tight top, the chest and back of a loose one) and the
+fit goes on under the ordinary prior. On skirts only the top skirt_band (waistband, hips)
+attracts, under a stronger prior still: a skirt shows neither the legs nor the stature. Points
+that do not attract still keep the body inside (κ). Bone scales are held at 1 except the
+torso's under tops and dresses, which show its proportions, and the priors are weighted like
+the data (about residual² / samples / prior variance: the garment's shape decides ν where it is
+seen, the prior where it is not). The placement
 puts the garment's top at the shoulders (tops, dresses) or the waist (skirts, trousers:
 garment_type); the best placement and the best one facing the other way (a garment's front and
 back look alike) are both fitted for a few iterations and the lower robust energy goes on.
@@ -96,6 +102,10 @@ class FitOptions:
     garment_shape_prior: float = 5e-8
     garment_pose_prior: float = 5e-6
     multi_start_iterations: int = 12     # garment-only: iterations of each of the two starts
+    top_band: float = 0.25               # garment-only tops, dresses: the band (m) below the top attracting first
+    top_shape_prior: float = 5e-7        # garment-only tops, dresses: α_ν while only that band attracts
+    contact_tolerance: float = 0.01      # then points with |gap − clearance| below this (m) attract too
+    contact_iterations: int = 20         # iterations of that second pass (after `iterations`)
     skirt_band: float = 0.2              # garment-only skirts: the top band (m) that attracts the body
     skirt_shape_prior: float = 5e-6      # garment-only skirts: α_ν (a skirt shows the waist and hips only)
     seed: int = 0
@@ -162,6 +172,7 @@ class _Fitter:
         self.cover_faces = garment_faces(model) if garment else np.ascontiguousarray(model.faces)
         self.attract = np.ones(len(scan))
         self.shape_prior = opts.garment_shape_prior if garment else opts.shape_prior
+        self.contact_pass = False
         self.sl = sl
         self.K, self.J = K, J
         self.pose_boost = 1.0
@@ -460,10 +471,22 @@ def fit_body(scan_vertices, scan_faces=None, model: BodyModel | None = None, *, 
                 q, _ = fitter.run(c[2], n0, sig[:n0], boosts=boosts[:n0])
                 runs.append((fitter.energy(q, s0, idx_s, idx_b), q))
             p = min(runs, key=lambda r: r[0])[1]
-    fitter.progress = progress
-    p, rms = fitter.run(p, o.iterations - n0, sig[n0:] if n0 < len(sig) else sig[-1:], history=history,
+    n_main = o.iterations - n0
+    n_contact = o.contact_iterations if fitter.contact_pass else 0
+    if progress is not None:
+        fitter.progress = lambda it, n, r: progress(it, n_main + n_contact, r)
+    p, rms = fitter.run(p, n_main, sig[n0:] if n0 < len(sig) else sig[-1:], history=history,
                         boosts=boosts[n0:] if n0 < len(boosts) else boosts[-1:],
-                        pen_last=o.self_penetration_iterations)
+                        pen_last=0 if n_contact else o.self_penetration_iterations)
+    if n_contact:
+        # contact pass (module doc): where the garment touches the fitted body it attracts too
+        touch = contact_points(model, p, P, o.clearance, o.contact_tolerance)
+        fitter.attract = np.maximum(fitter.attract, touch.astype(np.float64))
+        fitter.shape_prior = o.garment_shape_prior
+        if progress is not None:
+            fitter.progress = lambda it, n, r: progress(n_main + it, n_main + n_contact, r)
+        p, rms = fitter.run(p, n_contact, sig[-1:], history=history, boosts=boosts[-1:],
+                            pen_last=min(o.self_penetration_iterations, n_contact))
     return FitResult(params=p, to_core=A, history=history, rms=rms)
 
 
@@ -476,15 +499,30 @@ GARMENT_BONES = {"upper": ("spine_1", "spine_2", "spine_3", "spine_4", "chest", 
 
 
 def _garment_setup(fitter: _Fitter, model: BodyModel, P: np.ndarray, top: float, cls: str) -> None:
-    """Garment-only specifics of class cls: the bones it shows are freed (models with the default
-    skeleton), and a skirt attracts the body with its top band only, under a stronger shape prior."""
+    """Garment-only specifics of class cls (module doc): the bones it shows are freed (models
+    with the default skeleton); tops and dresses attract with their top band first, under a
+    stronger shape prior, and get the contact pass; skirts attract with their top band only."""
+    o = fitter.opts
     names = model.joint_names
     for n in GARMENT_BONES[cls]:
         if n in names:
             fitter.free[fitter.sl["bone_scales"].start + names.index(n)] = True
-    if cls == "skirt":
-        fitter.attract = (P[:, 1] > top - fitter.opts.skirt_band).astype(np.float64)
-        fitter.shape_prior = fitter.opts.skirt_shape_prior
+    if cls in ("upper", "dress"):
+        fitter.attract = (P[:, 1] > top - o.top_band).astype(np.float64)
+        fitter.shape_prior = o.top_shape_prior
+        fitter.contact_pass = o.contact_iterations > 0
+    elif cls == "skirt":
+        fitter.attract = (P[:, 1] > top - o.skirt_band).astype(np.float64)
+        fitter.shape_prior = o.skirt_shape_prior
+
+
+def contact_points(model: BodyModel, params: BodyParams, points, clearance: float, tolerance: float) -> np.ndarray:
+    """(N,) bool: the points (m) whose distance to the surface a garment can cover on the posed
+    body is within tolerance of clearance (where a garment touches the body)."""
+    X = model.pose(params)
+    P = np.ascontiguousarray(_validate.points("points", points))
+    _, _, cp = _core.closest_points_on_mesh(X, garment_faces(model), P)
+    return np.abs(np.linalg.norm(P - cp, axis=1) - clearance) < tolerance
 
 
 def inside_fraction(model: BodyModel, params: BodyParams, points) -> float:
