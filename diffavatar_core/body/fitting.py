@@ -29,10 +29,11 @@ the signed garment-to-body distance: Euclidean, + outside, to the surface a garm
 (not the head, hands or feet: a foot caught in a trouser leg held the leg too short). Its
 gradient −u_i·∂x_i/∂θ, u_i the unit direction from x_i to p_i, is exact; the face-normal
 distance of the full-scan term jumps where the closest point passes from one face of an edge
-to the other, and LM stalled on those jumps under garments. The term is quadratic about the clearance c where the garment is closer (symmetric: a one-sided
-penalty makes a smaller, shorter body the cheapest fit), Geman–McClure where it is further
-(loose regions do not pull the body out), and κ = penetration_weight below the minimum gap
-c_min (the body about to poke through). a_i ∈ {0, 1} says which garment points attract the
+to the other, and LM stalled on those jumps under garments. The term is quadratic about the
+clearance c where the garment is closer (symmetric: a one-sided penalty makes a smaller,
+shorter body the cheapest fit), Geman–McClure where it is further (loose regions do not pull
+the body out), and κ = penetration_weight below the minimum gap c_min (the body about to poke
+through). a_i ∈ {0, 1} says which garment points attract the
 body: a draped garment touches it only where it hangs from (a loose t-shirt's lower half, a
 skirt below the hips hang free, and attracting them inflated the body by up to 13 cm in
 stature). Tops and dresses are fitted twice: first only their top band (top_band: shoulders,
