@@ -35,12 +35,8 @@ def case(model, kind, seed):
         return ScanTransform.from_options("cm", "z").to_scan(G), Fg, "cm", "z", gtype, truth, G
     from diffavatar_core.pipeline.synthetic import make_case
     c = make_case(kind, seed=seed, model=model)
-    lab = c.scan_labels != 0
-    keep = np.flatnonzero(lab)
-    remap = -np.ones(len(lab), np.int64)
-    remap[keep] = np.arange(len(keep))
-    F = remap[c.scan_faces[lab[c.scan_faces].all(axis=1)]]
-    return c.scan_vertices[keep], F, c.units, c.up, kind, c.body_params, c.garment_x
+    V, F = c.garment_scan()
+    return V, F, c.units, c.up, kind, c.body_params, c.garment_x
 
 
 def summarize(rows) -> dict:

@@ -53,6 +53,14 @@ class SyntheticCase:
     body_faces: np.ndarray
     drape: dict = field(default_factory=dict)
 
+    def garment_scan(self) -> tuple[np.ndarray, np.ndarray]:
+        """(vertices, faces) of the scan's garment-labelled part (a garment-only scan, in
+        `units` with `up` vertical)."""
+        from ..scan.cleaning import compact
+        lab = self.scan_labels != BODY_LABEL
+        V, F, _ = compact(self.scan_vertices, self.scan_faces, lab[self.scan_faces].all(axis=1))
+        return V, F
+
     def truth_json(self) -> dict:
         p = self.body_params
         return {"template": self.template, "measurements_m": self.measurements,

@@ -149,15 +149,6 @@ def test_garment_type_places_shorts_at_the_waist(model):
     assert abs(stature(model, res.params) - stature(model, truth)) <= 0.03
 
 
-def _garment_only_scan(c):
-    """The garment-labelled part of a synthetic case's scan: (vertices, faces)."""
-    lab = c.scan_labels != 0
-    keep = np.flatnonzero(lab)
-    remap = -np.ones(len(lab), np.int64)
-    remap[keep] = np.arange(len(keep))
-    return c.scan_vertices[keep], remap[c.scan_faces[lab[c.scan_faces].all(axis=1)]]
-
-
 def test_contact_points(model):
     """A garment 1 cm off the body touches it everywhere at a 1 cm clearance and nowhere at 4 cm."""
     p = model.zero_params()
@@ -172,7 +163,7 @@ def test_draped_tshirt_fits_by_its_contacts(model):
     then by the points that touch the body, the stature is within 3 cm and the hips within 2.5."""
     from diffavatar_core.pipeline.synthetic import make_case
     c = make_case("tshirt", seed=1, model=model)
-    V, F = _garment_only_scan(c)
+    V, F = c.garment_scan()
     res = fit_body(V, F, model=model, units=c.units, up=c.up, garment_type="tshirt")
     p, t = res.params, c.body_params
     assert inside_fraction(model, p, c.garment_x) <= 0.01
@@ -189,7 +180,7 @@ def test_draped_skirt_sits_at_the_waist(model):
     Standing height is not asserted: a skirt does not show it (bench/fit_body.py measures it)."""
     from diffavatar_core.pipeline.synthetic import make_case
     c = make_case("skirt", seed=4, model=model)
-    V, F = _garment_only_scan(c)
+    V, F = c.garment_scan()
     res = fit_body(V, F, model=model, units=c.units, up=c.up, garment_type="skirt")
     p, t = res.params, c.body_params
     assert inside_fraction(model, p, c.garment_x) <= 0.01
