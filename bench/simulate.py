@@ -40,7 +40,7 @@ import numpy as np  # noqa: E402
 
 import diffavatar_core as dc  # noqa: E402
 from diffavatar_core.sim.cloth import _sim_params  # noqa: E402
-from diffavatar_core.sim.drape_job import build  # noqa: E402
+from diffavatar_core.sim.drape_job import SUBSTEPS, build  # noqa: E402
 
 DT = 1.0 / 120.0
 
@@ -300,11 +300,13 @@ def main(argv=None):
         return _emit(out, t0, json_out)
     cloth.reset(g["x0"])
     sew_steps = cloth.sew()  # as `diffavatar drape` does: close the seams before draping
-    r = cloth.drape(max_steps=a.drape_steps, iterations=a.drape_iterations, raise_on_divergence=False)
+    r = cloth.drape(max_steps=a.drape_steps, iterations=a.drape_iterations, raise_on_divergence=False,
+                    substeps=SUBSTEPS)
     x = np.array(cloth.x)
     gap = float(np.linalg.norm(x[g["seams"][:, 0]] - x[g["seams"][:, 1]], axis=1).max())
     out.update(converged=bool(r.converged), max_penetration_mm=1e3 * r.max_penetration,
                drape={"sew_steps": sew_steps, "steps": r.steps, "step_budget": a.drape_steps, "iterations_per_step": a.drape_iterations,
+                      "substeps": SUBSTEPS,
                       "settled": r.settled, "converged": r.converged, "diverged": r.diverged, "residual": r.residual,
                       "refine_iterations": r.refine_iterations, "max_seam_gap_mm": 1e3 * gap, "wall_s": r.wall_s,
                       "message": r.message})

@@ -10,6 +10,8 @@ def register(sub) -> None:
     p.add_argument("--out", required=True, help="output directory")
     p.add_argument("--max-steps", type=int, default=1500, help="XPBD step budget")
     p.add_argument("--iterations", type=int, default=100, help="constraint sweeps per step")
+    p.add_argument("--substeps", type=int, default=None,
+                   help="XPBD substeps per 1/120 s step, the sweeps split among them (default 4: finer meshes stay stiff)")
     p.add_argument("--edge", type=float, default=0.025, help="target edge length of the garment mesh (m)")
     p.add_argument("--no-refine", action="store_true", help="skip the Newton equilibrium refinement")
     p.set_defaults(func=_run)
@@ -18,6 +20,7 @@ def register(sub) -> None:
 def _run(args) -> int:
     from ..sim import drape_job
     info = drape_job.run(pathlib.Path(args.out), args.garment, args.max_steps, args.iterations,
-                         refine=not args.no_refine, edge=args.edge)
+                         refine=not args.no_refine, edge=args.edge,
+                         substeps=drape_job.SUBSTEPS if args.substeps is None else args.substeps)
     print(json.dumps(info, indent=2))
     return 0 if not info["diverged"] else 1

@@ -199,9 +199,10 @@ class Cloth:
               refine: bool = True, residual_tol: float = 1e-5, refine_iterations: int = 200, anchor_stiffness: float = 1.0,
               dt: float = 1 / 120, iterations: int = 100, gravity=(0, -9.81, 0), damping: float = 4.0,
               contact_radius: float = 0.01, max_speed: float = 50.0, progress=None, cancel=None,
-              raise_on_divergence: bool = True) -> DrapeResult:
+              raise_on_divergence: bool = True, substeps: int = 1) -> DrapeResult:
         """Quasi-static drape: XPBD until every vertex is slower than speed_tol (m/s) or
-        max_steps, then (refine=True) Newton refinement of the same energy to a relative force
+        max_steps steps of dt (each made of `substeps` XPBD steps of dt/substeps with
+        iterations/substeps sweeps: the same cost, a stiffer cloth on fine meshes), then (refine=True) Newton refinement of the same energy to a relative force
         residual ≤ residual_tol — converged only if, in addition, no vertex is deeper in the body
         than 10% of the collision thickness; anchor_stiffness κ (1/s²) ties each vertex to its settled
         position with a spring of stiffness κ·m (a static-friction proxy that also removes the
@@ -211,6 +212,7 @@ class Cloth:
         d = _core.DrapeParams()
         d.max_steps = _validate.positive_int("max_steps", max_steps)
         d.min_steps = int(min_steps)
+        d.substeps = _validate.positive_int("substeps", substeps)
         d.speed_tol = float(speed_tol)
         d.refine = bool(refine)
         d.residual_tol = float(residual_tol)

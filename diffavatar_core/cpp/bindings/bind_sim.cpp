@@ -85,6 +85,7 @@ void bind_sim(py::module_& m) {
       .def(py::init<>())
       .def_readwrite("max_steps", &DrapeParams::max_steps)
       .def_readwrite("min_steps", &DrapeParams::min_steps)
+      .def_readwrite("substeps", &DrapeParams::substeps)
       .def_readwrite("speed_tol", &DrapeParams::speed_tol)
       .def_readwrite("refine", &DrapeParams::refine)
       .def_readwrite("residual_tol", &DrapeParams::residual_tol)

@@ -34,6 +34,7 @@ struct SimParams {
 struct DrapeParams {
   int max_steps = 2000;
   int min_steps = 20;
+  int substeps = 1;            // XPBD steps of dt/substeps (iterations/substeps sweeps) per step of dt
   double speed_tol = 2e-3;     // m/s: XPBD phase has settled when every vertex is slower
   bool refine = true;          // Newton refinement to the exact equilibrium afterwards
   double residual_tol = 1e-5;  // max |net force| / mean vertex weight (dimensionless)
