@@ -201,12 +201,14 @@ class Cloth:
               contact_radius: float = 0.01, max_speed: float = 50.0, progress=None, cancel=None,
               raise_on_divergence: bool = True, substeps: int = 1) -> DrapeResult:
         """Quasi-static drape: XPBD until every vertex is slower than speed_tol (m/s) or
-        max_steps steps of dt (each made of `substeps` XPBD steps of dt/substeps with
-        iterations/substeps sweeps: the same cost, a stiffer cloth on fine meshes), then (refine=True) Newton refinement of the same energy to a relative force
-        residual ≤ residual_tol — converged only if, in addition, no vertex is deeper in the body
-        than 10% of the collision thickness; anchor_stiffness κ (1/s²) ties each vertex to its settled
+        max_steps steps of dt (s; each made of `substeps` XPBD steps of dt/substeps with
+        iterations/substeps sweeps: as many sweeps, a stiffer cloth on fine meshes), then
+        (refine=True) Newton refinement of the same energy to a relative force residual
+        ≤ residual_tol — converged only if, in addition, no vertex is deeper in the body than 10%
+        of the collision thickness; anchor_stiffness κ (1/s²) ties each vertex to its settled
         position with a spring of stiffness κ·m (a static-friction proxy that also removes the
-        zero-energy sliding modes of a frictionless contact). Releases the GIL; progress(ProgressEvent); cancel: CancelToken."""
+        zero-energy sliding modes of a frictionless contact). Releases the GIL;
+        progress(ProgressEvent); cancel: CancelToken."""
         p = _sim_params(dt, iterations, gravity, damping, contact_radius, max_speed)
         self.params = p
         d = _core.DrapeParams()
