@@ -12,6 +12,7 @@ import time
 
 import numpy as np
 
+from .. import _validate
 from ..io import save_mesh
 from .cloth import Cloth
 from .material import ClothMaterial
@@ -58,6 +59,7 @@ def run(out: pathlib.Path, garment: str = "tshirt", max_steps: int = 1500, itera
 def execute(out: pathlib.Path, garment: str = "tshirt", max_steps: int = 1500, iterations: int = 100,
             refine: bool = True, edge: float = 0.025, progress=None, cancel=None, substeps: int = SUBSTEPS):
     """As run, also returning the draped Cloth, the garment dict and the body: (info, cloth, g, body)."""
+    substeps = _validate.positive_int("substeps", substeps)   # before any work
     t0 = time.perf_counter()
     out.mkdir(parents=True, exist_ok=True)
     cloth, g, (bv, bf) = build(garment, edge=edge)

@@ -49,7 +49,11 @@ def test_substeps_bring_the_xpbd_elongation_of_a_hanging_strip_toward_the_analyt
     assert excess[2] < 0.5 * excess[0], excess
 
 
-def test_substeps_must_be_positive():
+def test_substeps_must_be_positive(tmp_path):
     cloth, g, _ = drape_job.build("mannequin-skirt", edge=0.05)
     with pytest.raises(ValueError, match="substeps"):
         cloth.drape(max_steps=1, substeps=0)
+    # the drape job (CLI) refuses before it builds, sews or writes anything
+    with pytest.raises(ValueError, match="substeps"):
+        drape_job.execute(tmp_path / "out", "mannequin-skirt", substeps=0)
+    assert not (tmp_path / "out").exists()
