@@ -23,7 +23,7 @@ from ..pattern.templates import TEMPLATES
 GARMENTS = tuple(TEMPLATES) + ("mannequin-skirt",)
 # XPBD substeps per 1/120 s step of the drape (Cloth.drape): with one step of 100 sweeps the
 # 2.5 cm pants' waistband stretched over the hips during the first fall and the pants slid to
-# the floor; four steps of 25 sweeps (the same cost) hold them at the waist (docs/simulation.md).
+# the floor; four steps of 25 sweeps (as many sweeps) hold them at the waist (docs/simulation.md).
 SUBSTEPS = 4
 
 
