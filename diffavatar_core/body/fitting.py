@@ -33,10 +33,9 @@ to the other, and LM stalled on those jumps under garments. The term is quadrati
 clearance c where the garment is closer (symmetric: a one-sided penalty makes a smaller,
 shorter body the cheapest fit), Geman–McClure where it is further (loose regions do not pull
 the body out), and κ = penetration_weight below the minimum gap c_min (the body about to poke
-through). a_i ∈ {0, 1} says which garment points attract the
-body: a draped garment touches it only where it hangs from (a loose t-shirt's lower half, a
-skirt below the hips hang free, and attracting them inflated the body by up to 13 cm in
-stature). Tops and dresses are fitted twice: first only their top band (top_band: shoulders,
+through). a_i ∈ {0, 1} says which garment points attract the body: a draped garment touches
+it only where it hangs from (a loose t-shirt's lower half, a skirt below the hips hang free,
+and attracting them inflated the body by up to 13 cm in stature). Tops and dresses are fitted twice: first only their top band (top_band: shoulders,
 upper chest) attracts, under a stronger shape prior; then every point whose gap is within
 contact_tolerance of c joins (all of a tight top, the chest and back of a loose one) and the
 fit goes on under the ordinary prior. On skirts only the top skirt_band (waistband, hips)
