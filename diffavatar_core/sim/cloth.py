@@ -38,8 +38,9 @@ class DrapeResult:
         return d
 
 
-def _sim_params(dt, iterations, gravity, damping, contact_radius, max_speed):
+def _sim_params(dt, iterations, gravity, damping, contact_radius, max_speed, fast=False):
     p = _core.SimParams()
+    p.fast = bool(fast)
     if not (np.isfinite(dt) and dt > 0):
         raise ValueError(f"dt: expected a time step > 0 s, got {dt}")
     p.dt = float(dt)
@@ -161,9 +162,11 @@ class Cloth:
 
     # --- Simulation ---------------------------------------------------------------------------
     def step(self, n: int = 1, dt: float = 1 / 120, iterations: int = 100, gravity=(0, -9.81, 0),
-             damping: float = 4.0, contact_radius: float = 0.01, max_speed: float = 50.0) -> float:
-        """n XPBD steps; returns the max vertex speed (m/s) after the last one."""
-        p = _sim_params(dt, iterations, gravity, damping, contact_radius, max_speed)
+             damping: float = 4.0, contact_radius: float = 0.01, max_speed: float = 50.0, fast: bool = False) -> float:
+        """n XPBD steps; returns the max vertex speed (m/s) after the last one. fast: the sweeps in
+        single precision, vectorised (sim/fast_sweep.hpp; ~2× faster, float round-off, the state's
+        multipliers stay zero): for drapes, not for anything differentiated."""
+        p = _sim_params(dt, iterations, gravity, damping, contact_radius, max_speed, fast)
         return self.solver.step(self.state, p, _validate.positive_int("n", n))
 
     def sew(self, max_steps: int = 60, gap_tol: float = 1e-3, iterations: int = 100, min_gap: float = 0.05,
@@ -199,7 +202,7 @@ class Cloth:
               refine: bool = True, residual_tol: float = 1e-5, refine_iterations: int = 200, anchor_stiffness: float = 1.0,
               dt: float = 1 / 120, iterations: int = 100, gravity=(0, -9.81, 0), damping: float = 4.0,
               contact_radius: float = 0.01, max_speed: float = 50.0, progress=None, cancel=None,
-              raise_on_divergence: bool = True, substeps: int = 1) -> DrapeResult:
+              raise_on_divergence: bool = True, substeps: int = 1, fast: bool = False) -> DrapeResult:
         """Quasi-static drape: XPBD until every vertex is slower than speed_tol (m/s) or
         max_steps steps of dt (s; each made of `substeps` XPBD steps of dt/substeps with
         iterations/substeps sweeps: as many sweeps, a stiffer cloth on fine meshes), then
@@ -207,9 +210,10 @@ class Cloth:
         ≤ residual_tol — converged only if, in addition, no vertex is deeper in the body than 10%
         of the collision thickness; anchor_stiffness κ (1/s²) ties each vertex to its settled
         position with a spring of stiffness κ·m (a static-friction proxy that also removes the
-        zero-energy sliding modes of a frictionless contact). Releases the GIL;
-        progress(ProgressEvent); cancel: CancelToken."""
-        p = _sim_params(dt, iterations, gravity, damping, contact_radius, max_speed)
+        zero-energy sliding modes of a frictionless contact). fast: the XPBD phase's sweeps in
+        single precision, vectorised (as in step; the Newton refinement stays in double). Releases
+        the GIL; progress(ProgressEvent); cancel: CancelToken."""
+        p = _sim_params(dt, iterations, gravity, damping, contact_radius, max_speed, fast)
         self.params = p
         d = _core.DrapeParams()
         d.max_steps = _validate.positive_int("max_steps", max_steps)

@@ -79,7 +79,8 @@ void bind_sim(py::module_& m) {
       .def_readwrite("gravity", &SimParams::gravity)
       .def_readwrite("damping", &SimParams::damping)
       .def_readwrite("contact_radius", &SimParams::contact_radius)
-      .def_readwrite("max_speed", &SimParams::max_speed);
+      .def_readwrite("max_speed", &SimParams::max_speed)
+      .def_readwrite("fast", &SimParams::fast);
 
   py::class_<DrapeParams>(m, "DrapeParams")
       .def(py::init<>())
@@ -181,7 +182,12 @@ void bind_sim(py::module_& m) {
            [](const XpbdSolver& s, const RowMatX3d& x, const Vec3& g) {
              return energy_gradient(s.energy_context(g), x);
            },
-           py::arg("x"), py::arg("gravity"));
+           py::arg("x"), py::arg("gravity"))
+      .def("energy_hessian",
+           [](const XpbdSolver& s, const RowMatX3d& x, const Vec3& g, bool project) {
+             return energy_hessian(s.energy_context(g), x, s.free_dofs(), project);
+           },
+           py::arg("x"), py::arg("gravity"), py::arg("project") = true);
 
   // dφ/d{rest, stretch_compliance, bend_stiffness, body_vertices}, as both adjoints return it
   auto control_dict = [](const ControlGradient& g) {

@@ -223,8 +223,14 @@ double XpbdSolver::step(ClothState& s, const SimParams& p, StepTape* tape, const
   s.lambda_contact = VecXd::Zero(contacts_.size());
   if (tape) tape->contacts = contacts_;
   if (tape) tape->sweeps.resize(p.iterations);
-  for (int it = 0; it < p.iterations; ++it) {
-    sweep(s, p.dt, tape ? &tape->sweeps[it] : nullptr);
+  if (p.fast && !tape) {
+    if (fast_.revision != revision_) {
+      fast_.build(model_, control_, cache_, plan_);
+      fast_.revision = revision_;
+    }
+    fast_.run(s.x, p.iterations, p.dt, contacts_, collider_, m.thickness, m.contact_stiffness, m.seam_compliance);
+  } else {
+    for (int it = 0; it < p.iterations; ++it) sweep(s, p.dt, tape ? &tape->sweeps[it] : nullptr);
   }
   double vmax = 0.0;
   for (int i = 0; i < nv; ++i) {

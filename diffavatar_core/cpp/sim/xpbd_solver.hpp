@@ -17,6 +17,7 @@
 #include "sim/cloth_control.hpp"
 #include "sim/cloth_model.hpp"
 #include "sim/cloth_state.hpp"
+#include "sim/fast_sweep.hpp"
 #include "sim/sweep_plan.hpp"
 #include "sim/sweep_tape.hpp"
 
@@ -29,6 +30,7 @@ struct SimParams {
   double damping = 4.0;                // 1/s, v ← v·exp(−damping·dt)
   double contact_radius = 0.01;        // m beyond the thickness within which contacts are detected
   double max_speed = 50.0;             // m/s; above (or non-finite) the step is declared diverged
+  bool fast = false;  // single-precision SIMD sweeps (sim/fast_sweep.hpp): drapes only, never with a tape
 };
 
 struct DrapeParams {
@@ -119,6 +121,7 @@ class XpbdSolver {
   RowMatX3d anchor_;
   double anchor_k_ = 0.0;
   std::uint64_t revision_ = 0;
+  FastSweep fast_;  // packed for revision fast_.revision
   void bump_revision();
 };
 
