@@ -8,7 +8,7 @@ namespace diffavatar {
 namespace {
 
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
-#define DA_CLONES __attribute__((target_clones("arch=skylake-avx512", "arch=haswell", "default")))
+#define DA_CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
 #else
 #define DA_CLONES
 #endif
@@ -16,12 +16,16 @@ namespace {
 enum StretchField { kW0, kW1, kW2, kB00, kB01, kB10, kB11, kS00, kS01, kS11, kCa0, kCa1, kCa2 };
 enum BendField { kBw0, kBw1, kBw2, kBw3, kTheta0, kInvKw };
 
+// max / min by value (std::max returns a reference, which keeps a branch in the loop)
+__attribute__((always_inline)) inline float vmax(float a, float b) { return a > b ? a : b; }
+__attribute__((always_inline)) inline float vmin(float a, float b) { return a < b ? a : b; }
+
 // atan2 in float without branches (vectorisable): octant reduction and the odd polynomial of
 // Abramowitz & Stegun 4.4.49 for atan on [0, 1] (|error| ≤ 2e-8 rad before float round-off).
-inline float atan2_poly(float y, float x) {
+__attribute__((always_inline)) inline float atan2_poly(float y, float x) {
   float ax = std::fabs(x), ay = std::fabs(y);
-  float mx = std::max(ax, ay), mn = std::min(ax, ay);
-  float a = mx > 0.0f ? mn / mx : 0.0f;
+  float mx = vmax(ax, ay), mn = vmin(ax, ay);
+  float a = mn / vmax(mx, 1e-30f);   // no conditional division: the loop stays branch-free
   float s = a * a;
   float r = ((((((((0.0028662257f * s - 0.0161657367f) * s + 0.0429096138f) * s - 0.0752896400f) * s +
                  0.1065626393f) * s - 0.1420889944f) * s + 0.1999355085f) * s - 0.3333314528f) * s) * a + a;
@@ -104,11 +108,13 @@ DA_CLONES void bending_block(float* __restrict X, const std::int32_t* const* V, 
     const float n2x = day * ez - daz * ey, n2y = daz * ex - dax * ez, n2z = dax * ey - day * ex;
     const float el2 = ex * ex + ey * ey + ez * ez;
     const float q1 = n1x * n1x + n1y * n1y + n1z * n1z, q2 = n2x * n2x + n2y * n2y + n2z * n2z;
-    const bool ok = el2 > 1e-24f && q1 > 1e-30f && q2 > 1e-30f;
-    const float el = std::sqrt(el2), inv_el = ok ? 1.0f / el : 0.0f;
+    // a degenerate hinge projects nothing (as dihedral_gradient's false): okf = 0 zeroes its
+    // gradient and Δλ; divisions are unconditional (by clamped values), so the loop has no branch
+    const float okf = (el2 > 1e-24f) & (q1 > 1e-30f) & (q2 > 1e-30f) ? 1.0f : 0.0f;
+    const float el = std::sqrt(el2), inv_el = okf / vmax(el, 1e-12f);
     const float mx = n1y * n2z - n1z * n2y, my = n1z * n2x - n1x * n2z, mz = n1x * n2y - n1y * n2x;
     const float th = atan2_poly((mx * ex + my * ey + mz * ez) * inv_el, n1x * n2x + n1y * n2y + n1z * n2z);
-    const float iq1 = ok ? 1.0f / q1 : 0.0f, iq2 = ok ? 1.0f / q2 : 0.0f;
+    const float iq1 = okf / vmax(q1, 1e-30f), iq2 = okf / vmax(q2, 1e-30f);
     const float m1x = n1x * iq1, m1y = n1y * iq1, m1z = n1z * iq1, m2x = n2x * iq2, m2y = n2y * iq2, m2z = n2z * iq2;
     const float ce = cax * ex + cay * ey + caz * ez, de = dax * ex + day * ey + daz * ez;
     // (c−a)·ê, (d−a)·ê, (c−b)·ê, (d−b)·ê
@@ -122,8 +128,7 @@ DA_CLONES void bending_block(float* __restrict X, const std::int32_t* const* V, 
     const float denom = at + w0 * (g0x * g0x + g0y * g0y + g0z * g0z) + w1 * (g1x * g1x + g1y * g1y + g1z * g1z) +
                         w2 * (g2x * g2x + g2y * g2y + g2z * g2z) + w3 * (g3x * g3x + g3y * g3y + g3z * g3z);
     const float l = L[j];
-    float dl = -(th - T0[j] + at * l) / denom;
-    dl = ok ? dl : 0.0f;
+    const float dl = -okf * (th - T0[j] + at * l) / denom;   // denom ≥ at > 0
     L[j] = l + dl;
     const float s0 = w0 * dl, s1 = w1 * dl, s2 = w2 * dl, s3 = w3 * dl;
     X[ia] = ax + s0 * g0x;
@@ -152,7 +157,7 @@ DA_CLONES void contact_block(float* __restrict X, const std::int32_t* __restrict
     const float x = X[i], y = X[i + 1], z = X[i + 2];
     const float C = nx * x + ny * y + nz * z - D[j];
     const float l = L[j];
-    const float nl = std::max(l - (C + ac * l) / (w + ac), 0.0f);
+    const float nl = vmax(l - (C + ac * l) / (w + ac), 0.0f);
     const float dl = nl - l;
     L[j] = nl;
     X[i] = x + w * dl * nx;
