@@ -266,11 +266,12 @@ class Cloth:
         return self.solver.refine(self.state, p, d, keep_anchor, keep_contacts, progress, cancel)
 
     def reequilibrate(self, x_warm, residual_tol: float = 1e-7, refine_iterations: int = 80,
-                      max_steps: int = 600, iterations: int = 100, cancel=None) -> None:
+                      max_steps: int = 600, iterations: int = 100, cancel=None, fast: bool = False) -> None:
         """Equilibrium of the current control from a nearby one x_warm (V,3) m — what an
         optimizer needs after a small change of θ: Newton from x_warm first (anchored to it),
-        a full XPBD + Newton drape from x_warm only if Newton misses residual_tol.
-        Raises ValueError when no equilibrium is reached."""
+        a full XPBD + Newton drape from x_warm only if Newton misses residual_tol (fast: that
+        drape's sweeps in single precision, as in drape). Raises ValueError when no equilibrium
+        is reached."""
         self.state.x = x_warm
         self.state.v = np.zeros_like(self.state.x)
         _, res = self.refine(keep_anchor=False, residual_tol=residual_tol, refine_iterations=refine_iterations,
@@ -278,7 +279,7 @@ class Cloth:
         if not res <= residual_tol:
             self.state.x = x_warm
             r = self.drape(max_steps=max(max_steps, 1), iterations=iterations, min_steps=1, residual_tol=residual_tol,
-                           refine_iterations=120, raise_on_divergence=False, cancel=cancel)
+                           refine_iterations=120, raise_on_divergence=False, cancel=cancel, fast=fast)
             if not r.converged:
                 raise ValueError(f"drape did not converge: {r.message}")
 

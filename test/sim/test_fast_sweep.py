@@ -118,3 +118,14 @@ def test_a_fast_drape_converges_outside_the_body():
     assert r.max_penetration <= 0.1 * float(cloth.model.thickness)
     x = np.asarray(cloth.x)
     assert np.linalg.norm(x[g["seams"][:, 0]] - x[g["seams"][:, 1]], axis=1).max() < 1e-3
+
+
+def test_the_trajectory_adjoint_refuses_single_precision_sweeps():
+    """Its replay records float64 projections; a float forward would not be what it reverses."""
+    from diffavatar_core import _core
+    from diffavatar_core.sim.cloth import _sim_params
+    cloth, _, _ = hanging_sheet(0.1, 0.1, 4, 4)
+    p = _sim_params(1 / 120, 5, (0, -9.81, 0), 4.0, 0.01, 50.0, fast=True)
+    W = np.zeros_like(np.asarray(cloth.x))
+    with pytest.raises(ValueError, match="not differentiable"):
+        _core.trajectory_adjoint(cloth.solver, cloth.state, p, 2, W, W)
