@@ -31,6 +31,7 @@ from ..pattern.templates import TEMPLATES, make_template
 from ..scan import ScanData, load_scan
 from ..scan.errors import ScanError
 from ..sim.cloth import Cloth
+from ..sim.drape_job import SUBSTEPS
 from ..sim.material import ClothMaterial
 from .coopt import co_optimize, seam_mismatch_pct
 from .options import RecoverOptions
@@ -104,7 +105,8 @@ def _load_template_file(path, edge_length: float, body_vertices: np.ndarray) -> 
 def _fine_output(g, cage, co, fine: Garment, material, body_vertices, body_faces, opts, cancel):
     """(fine garment, its rest (V, 2) m, its equilibrium (V, 3) m) for the co-optimization's
     result: the pattern carried through the cage, warm-started from the coarse drape, Newton to
-    equilibrium (an XPBD drape with single-precision sweeps first if Newton alone misses it).
+    equilibrium (first an XPBD drape as `diffavatar drape` runs it — single-precision sweeps,
+    substeps — if Newton alone misses it).
     Raises ValueError when no equilibrium is reached."""
     rest = transfer_pattern(g, cage, co.rest[cage.handles], fine)   # MVC interpolate: ζ = x̄[handles]
     x0 = transfer_positions(g, co.x, fine)
@@ -113,7 +115,7 @@ def _fine_output(g, cage, co, fine: Garment, material, body_vertices, body_faces
     cloth.set_control(rest=rest, bend_stiffness=np.asarray(co.bend_stiffness, float))
     x0 = push_outside(x0, body_vertices, body_faces, float(cloth.model.thickness))
     cloth.reequilibrate(x0, opts.residual_tol, refine_iterations=200, max_steps=max(opts.drape_steps, 600),
-                        iterations=opts.drape_iterations, cancel=cancel, fast=True)
+                        iterations=opts.drape_iterations, cancel=cancel, fast=True, substeps=SUBSTEPS)
     return fine, rest, np.array(cloth.x)
 
 

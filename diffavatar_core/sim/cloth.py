@@ -164,8 +164,8 @@ class Cloth:
     def step(self, n: int = 1, dt: float = 1 / 120, iterations: int = 100, gravity=(0, -9.81, 0),
              damping: float = 4.0, contact_radius: float = 0.01, max_speed: float = 50.0, fast: bool = False) -> float:
         """n XPBD steps; returns the max vertex speed (m/s) after the last one. fast: the sweeps in
-        single precision, vectorised (sim/fast_sweep.hpp; ~2× faster, float round-off, the state's
-        multipliers stay zero): for drapes, not for anything differentiated."""
+        single precision, vectorised (sim/fast_sweep.hpp; 6× faster with AVX-512, float round-off,
+        the state's multipliers stay zero): for drapes, not for anything differentiated."""
         p = _sim_params(dt, iterations, gravity, damping, contact_radius, max_speed, fast)
         return self.solver.step(self.state, p, _validate.positive_int("n", n))
 
@@ -266,12 +266,12 @@ class Cloth:
         return self.solver.refine(self.state, p, d, keep_anchor, keep_contacts, progress, cancel)
 
     def reequilibrate(self, x_warm, residual_tol: float = 1e-7, refine_iterations: int = 80,
-                      max_steps: int = 600, iterations: int = 100, cancel=None, fast: bool = False) -> None:
+                      max_steps: int = 600, iterations: int = 100, cancel=None, fast: bool = False,
+                      substeps: int = 1) -> None:
         """Equilibrium of the current control from a nearby one x_warm (V,3) m — what an
         optimizer needs after a small change of θ: Newton from x_warm first (anchored to it),
-        a full XPBD + Newton drape from x_warm only if Newton misses residual_tol (fast: that
-        drape's sweeps in single precision, as in drape). Raises ValueError when no equilibrium
-        is reached."""
+        a full XPBD + Newton drape from x_warm only if Newton misses residual_tol (fast and
+        substeps: that drape's, as in drape). Raises ValueError when no equilibrium is reached."""
         self.state.x = x_warm
         self.state.v = np.zeros_like(self.state.x)
         _, res = self.refine(keep_anchor=False, residual_tol=residual_tol, refine_iterations=refine_iterations,
@@ -279,7 +279,8 @@ class Cloth:
         if not res <= residual_tol:
             self.state.x = x_warm
             r = self.drape(max_steps=max(max_steps, 1), iterations=iterations, min_steps=1, residual_tol=residual_tol,
-                           refine_iterations=120, raise_on_divergence=False, cancel=cancel, fast=fast)
+                           refine_iterations=120, raise_on_divergence=False, cancel=cancel, fast=fast,
+                           substeps=substeps)
             if not r.converged:
                 raise ValueError(f"drape did not converge: {r.message}")
 

@@ -129,3 +129,9 @@ def test_the_trajectory_adjoint_refuses_single_precision_sweeps():
     W = np.zeros_like(np.asarray(cloth.x))
     with pytest.raises(ValueError, match="not differentiable"):
         _core.trajectory_adjoint(cloth.solver, cloth.state, p, 2, W, W)
+
+
+def test_the_drape_job_names_an_unknown_sweep_precision_before_any_work(tmp_path):
+    with pytest.raises(ValueError, match="sweeps"):
+        drape_job.execute(tmp_path / "out", "mannequin-skirt", sweeps="half")
+    assert not (tmp_path / "out").exists()
