@@ -106,8 +106,7 @@ def _fine_output(g, cage, co, fine: Garment, material, body_vertices, body_faces
     """(fine garment, its rest (V, 2) m, its equilibrium (V, 3) m) for the co-optimization's
     result: the pattern carried through the cage, warm-started from the coarse drape, Newton to
     equilibrium (first an XPBD drape as `diffavatar drape` runs it — single-precision sweeps,
-    substeps — if Newton alone misses it).
-    Raises ValueError when no equilibrium is reached."""
+    substeps — if Newton alone misses it). Raises ValueError when no equilibrium is reached."""
     rest = transfer_pattern(g, cage, co.rest[cage.handles], fine)   # MVC interpolate: ζ = x̄[handles]
     x0 = transfer_positions(g, co.x, fine)
     cloth = Cloth(fine.rest, fine.faces, x0, seams=fine.seams, groups=fine.panel[fine.faces[:, 0]],

@@ -293,8 +293,8 @@ void FastSweep::run(RowMatX3d& x, int sweeps, double dt, const std::vector<Conta
       contact_block(X_.data(), cv_.data(), w_.data(), cn_[0].data(), cn_[1].data(), cn_[2].data(), cd_.data(),
                     cl_.data(), c0, std::min(nc, c0 + 1024), ac);
   }
-  // Write back the displacement (float differences of nearby values are exact): vertices the
-  // sweeps did not move, pinned ones among them, keep their double positions bit for bit.
+  // Add the float displacement to the double positions: vertices the sweeps did not move,
+  // pinned ones among them, keep their positions bit for bit.
   for (int i = 0; i < nv; ++i)
     for (int k = 0; k < 3; ++k) x(i, k) += static_cast<double>(X_[3 * i + k] - X0_[3 * i + k]);
 }

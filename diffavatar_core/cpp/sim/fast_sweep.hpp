@@ -9,8 +9,9 @@
 //
 // Only for the drape's dynamic phase, never for what is differentiated: no tape, round-off of
 // float (positions ~6e-8 m at 1 m), and the multipliers live here (the state's stay zero). The
-// Newton refinement that follows works in double. Deterministic for a fixed thread count and
-// CPU (an AVX2 copy of the loops is used when the CPU has it).
+// Newton refinement that follows works in double. The result does not depend on the thread count
+// (lanes and contact chunks touch disjoint vertices); it may differ in the last bits between CPUs:
+// the loops are compiled for AVX-512, AVX2 and baseline x86-64 and the CPU's features pick one.
 #pragma once
 #include <cstdint>
 #include <vector>
