@@ -20,6 +20,13 @@ enum BendField { kBw0, kBw1, kBw2, kBw3, kTheta0, kInvKw };
 __attribute__((always_inline)) inline float vmax(float a, float b) { return a > b ? a : b; }
 __attribute__((always_inline)) inline float vmin(float a, float b) { return a < b ? a : b; }
 
+// X[i..i+2] = (x, y, z): one vertex's row of the float positions (3 per vertex)
+__attribute__((always_inline)) inline void store3(float* X, int i, float x, float y, float z) {
+  X[i] = x;
+  X[i + 1] = y;
+  X[i + 2] = z;
+}
+
 // atan2 in float without branches (vectorisable): octant reduction and the odd polynomial of
 // Abramowitz & Stegun 4.4.49 for atan on [0, 1] (|error| ≤ 2e-8 rad before float round-off).
 __attribute__((always_inline)) inline float atan2_poly(float y, float x) {
@@ -81,9 +88,7 @@ DA_CLONES void stretch_block(float* __restrict X, const std::int32_t* __restrict
     const float xk[3][3] = {{x0, y0, z0}, {x1, y1, z1}, {x2, y2, z2}};
     for (int k = 0; k < 3; ++k) {
       const float u = wk[k] * (c0k[k] * dl0 + 0.5f * c1k[k] * dl2), t = wk[k] * (c1k[k] * dl1 + 0.5f * c0k[k] * dl2);
-      X[ik[k]] = xk[k][0] + u * f0x + t * f1x;
-      X[ik[k] + 1] = xk[k][1] + u * f0y + t * f1y;
-      X[ik[k] + 2] = xk[k][2] + u * f0z + t * f1z;
+      store3(X, ik[k], xk[k][0] + u * f0x + t * f1x, xk[k][1] + u * f0y + t * f1y, xk[k][2] + u * f0z + t * f1z);
     }
   }
 }
@@ -131,18 +136,10 @@ DA_CLONES void bending_block(float* __restrict X, const std::int32_t* const* V, 
     const float dl = -okf * (th - T0[j] + at * l) / denom;   // denom ≥ at > 0
     L[j] = l + dl;
     const float s0 = w0 * dl, s1 = w1 * dl, s2 = w2 * dl, s3 = w3 * dl;
-    X[ia] = ax + s0 * g0x;
-    X[ia + 1] = ay + s0 * g0y;
-    X[ia + 2] = az + s0 * g0z;
-    X[ib] = bx + s1 * g1x;
-    X[ib + 1] = by + s1 * g1y;
-    X[ib + 2] = bz + s1 * g1z;
-    X[ic] = cx + s2 * g2x;
-    X[ic + 1] = cy + s2 * g2y;
-    X[ic + 2] = cz + s2 * g2z;
-    X[id] = dx + s3 * g3x;
-    X[id + 1] = dy + s3 * g3y;
-    X[id + 2] = dz + s3 * g3z;
+    store3(X, ia, ax + s0 * g0x, ay + s0 * g0y, az + s0 * g0z);
+    store3(X, ib, bx + s1 * g1x, by + s1 * g1y, bz + s1 * g1z);
+    store3(X, ic, cx + s2 * g2x, cy + s2 * g2y, cz + s2 * g2z);
+    store3(X, id, dx + s3 * g3x, dy + s3 * g3y, dz + s3 * g3z);
   }
 }
 
@@ -160,9 +157,7 @@ DA_CLONES void contact_block(float* __restrict X, const std::int32_t* __restrict
     const float nl = vmax(l - (C + ac * l) / (w + ac), 0.0f);
     const float dl = nl - l;
     L[j] = nl;
-    X[i] = x + w * dl * nx;
-    X[i + 1] = y + w * dl * ny;
-    X[i + 2] = z + w * dl * nz;
+    store3(X, i, x + w * dl * nx, y + w * dl * ny, z + w * dl * nz);
   }
 }
 
