@@ -74,7 +74,7 @@ def main():
         for seed in range(args.seeds):
             try:
                 V, F, units, up, gtype, truth, G = case(model, kind, seed)
-            except RuntimeError as e:      # a ground-truth drape that did not converge
+            except RuntimeError as e:      # a ground-truth drape that did not converge, or slid off the body
                 row = {"kind": kind, "seed": seed, "skipped": str(e)}
                 rows.append(row)
                 print(json.dumps(row), flush=True)

@@ -173,18 +173,22 @@ def test_draped_tshirt_fits_by_its_contacts(model):
     assert np.abs(p.shape).max() < 3.0                 # within 3 prior standard deviations
 
 
-@pytest.mark.xfail(raises=AssertionError, strict=False, reason=(
-    "known defect, CPU-dependent (2026-11-25): on an AMD EPYC (AVX-512) machine this case's garment-only "
-    "fit ends facing backwards with the waist 22.8 cm off and 4.8% of the skirt inside the body; the "
-    "forward-facing start's rigid refinement slides the body 0.47 m down and loses the multi-start. The "
-    "stop-20 code fails the same way there; it passed on the earlier CI machine. Not fixed yet."))
 def test_draped_skirt_sits_at_the_waist(model):
     """A skirt draped by the simulator on a body from the prior (the synthetic case of the
     recovery benchmark: cm, Y up, noise, holes, fragments), fitted under: the body is inside,
     its waist and hip joints are where the skirt hangs from, and the hidden legs stay plausible.
-    Standing height is not asserted: a skirt does not show it (bench/fit_body.py measures it)."""
+    Standing height is not asserted: a skirt does not show it (bench/fit_body.py measures it).
+    The first seed from 4 whose ground truth is a worn skirt: on some CPUs seed 4's skirt slides
+    off the hips to the floor (round-off decides), and make_case refuses such a case."""
     from diffavatar_core.pipeline.synthetic import make_case
-    c = make_case("skirt", seed=4, model=model)
+    c = None
+    for seed in range(4, 10):
+        try:
+            c = make_case("skirt", seed=seed, model=model)
+            break
+        except RuntimeError as e:
+            assert "slid off" in str(e) or "did not converge" in str(e)
+    assert c is not None
     V, F = c.garment_scan()
     res = fit_body(V, F, model=model, units=c.units, up=c.up, garment_type="skirt")
     p, t = res.params, c.body_params
@@ -217,3 +221,13 @@ def test_self_penetration_depth(model):
         p.pose[wide.joint_index("shoulder_left")] = [0, 0, a]
         depths.append(self_penetration_depth(wide, p))
     assert 0 < depths[0] < depths[1] < depths[2]
+
+
+def test_a_ground_truth_skirt_that_slid_off_the_body_is_refused(model):
+    """make_case never returns a garment that fell off the body (a fit would then be asked to put
+    a body into a skirt lying at its feet): a skirt with 0.5 m of waist ease (its waist wider than
+    the hips) slides down, and drape_truth refuses it by name (its top sinks more than
+    MAX_TOP_DROP below its placement)."""
+    from diffavatar_core.pipeline.synthetic import make_case
+    with pytest.raises(RuntimeError, match="slid off the body"):
+        make_case("skirt", seed=0, model=model, measurements={"waist_ease": 0.5})
