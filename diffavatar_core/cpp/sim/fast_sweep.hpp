@@ -5,7 +5,7 @@
 // float copy of the positions, with the rest data (D̄⁻¹, Ā, hinge weights, compliances) packed
 // per block in structure-of-arrays form. Kernels are those of stretch_kernel.hpp (the 3×3 block
 // from three weighted sums of the grain-frame coefficients), bending_kernel.hpp (a polynomial
-// atan2, |error| ≤ 1e-7 rad), seam_kernel.hpp and contact_kernel.hpp.
+// atan2, |error| ≤ 2e-8 rad before float round-off), seam_kernel.hpp and contact_kernel.hpp.
 //
 // Only for the drape's dynamic phase, never for what is differentiated: no tape, round-off of
 // float (positions ~6e-8 m at 1 m), and the multipliers live here (the state's stay zero). The
