@@ -184,7 +184,6 @@ void FastSweep::build(const ClothModel& m, const ClothControl& c, const RestCach
           s01 += w[k] * c0[k] * c1[k];
           s11 += w[k] * c1[k] * c1[k];
         }
-        P.v[3].push_back(0);
         const double area = cache.tri[ci].area;
         const double vals[13] = {w[0], w[1], w[2], B(0, 0), B(0, 1), B(1, 0), B(1, 1), s00, s01, s11,
                                  c.stretch_compliance(m.tri_group[ci], 0) / area,
@@ -203,8 +202,6 @@ void FastSweep::build(const ClothModel& m, const ClothControl& c, const RestCach
       } else {
         P.v[0].push_back(m.seams(ci, 0));
         P.v[1].push_back(m.seams(ci, 1));
-        P.v[2].push_back(0);
-        P.v[3].push_back(0);
       }
       ++r.end;
     }

@@ -34,7 +34,7 @@ class FastSweep {
   std::uint64_t revision = 0;  // the solver revision (control + plan) it was built for
 
   /// Packed constraints of one kind: vertex indices and float fields, one entry per constraint in
-  /// plan order.
+  /// plan order (a kind fills only the index columns and fields it has: 3/4/2 vertices).
   struct Pack {
     std::vector<std::int32_t> v[4];
     std::vector<float> f[13];
