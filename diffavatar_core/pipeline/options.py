@@ -38,6 +38,8 @@ class RecoverOptions:
     iterations: int = 30
     edge_length: float = 0.04
     output_edge_length: float = 0.0
+    output_settle_tol: float = 5e-4
+    output_drape_steps: int = 1500
     parametrization: str = "cage"
     optimizer: str = "lbfgs"
     bending: str = "garment"
@@ -65,15 +67,18 @@ class RecoverOptions:
     def __post_init__(self):
         def bad(name, why):
             raise ValueError(f"recover options: {name} {why}, got {getattr(self, name)!r}")
-        for name in ("iterations", "samples", "drape_steps", "drape_iterations", "patience", "bending_after"):
+        for name in ("iterations", "samples", "drape_steps", "drape_iterations", "patience", "bending_after",
+                     "output_drape_steps"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < 0:
                 bad(name, "must be a non-negative integer")
         for name in ("edge_length", "bend_stiffness", "residual_tol", "max_seam_mismatch_pct",
-                     "body_trim_distance"):
+                     "body_trim_distance", "output_settle_tol"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
                 bad(name, "must be a positive number")
+        if self.output_drape_steps < 1:
+            bad("output_drape_steps", "must be at least 1")
         if not 0.005 <= self.edge_length <= 0.2:
             bad("edge_length", "must lie in [0.005, 0.2] m")
         o = self.output_edge_length

@@ -41,6 +41,7 @@ from .result import BodyAssets, MaterialAssets, RecoveryResult
 STAGES = ("preprocess", "body", "drape", "optimize", "refine", "metrics")
 # garment class → built-in template when the type names a class or a synonym (config/labels.yaml)
 CLASS_TEMPLATE = {"upper": "tshirt", "dress": "dress", "skirt": "skirt", "pants": "pants"}
+OUTPUT_SWEEPS = 100         # XPBD sweeps per step of the fine output drape (as `diffavatar drape`)
 MIN_BODY_FRACTION = 0.2    # of the scan's vertices, for a body fit to the body-labelled points
 
 
@@ -103,19 +104,24 @@ def _load_template_file(path, edge_length: float, body_vertices: np.ndarray) -> 
 
 
 def _fine_output(g, cage, co, fine: Garment, material, body_vertices, body_faces, opts, cancel):
-    """(fine garment, its rest (V, 2) m, its equilibrium (V, 3) m) for the co-optimization's
-    result: the pattern carried through the cage, warm-started from the coarse drape, Newton to
-    equilibrium (first an XPBD drape as `diffavatar drape` runs it — single-precision sweeps,
-    substeps — if Newton alone misses it). Raises ValueError when no equilibrium is reached."""
+    """(fine garment, its rest (V, 2) m, its drape (V, 3) m, the drape's SettleResult) for the
+    co-optimization's result: the pattern carried through the cage, warm-started from the coarse
+    drape (pushed out of the body), then an XPBD drape as `diffavatar drape` runs it (single-
+    precision sweeps, substeps) until it stands still (Cloth.settle: no vertex moves more than
+    output_settle_tol in 0.5 s). Not Newton: at ~10k vertices its iterations cost ~2 s and stall
+    on the buckled cloth (200 of them did not converge from this start), and nothing is
+    differentiated here. Raises ValueError when the cloth does not settle."""
     rest = transfer_pattern(g, cage, co.rest[cage.handles], fine)   # MVC interpolate: ζ = x̄[handles]
     x0 = transfer_positions(g, co.x, fine)
     cloth = Cloth(fine.rest, fine.faces, x0, seams=fine.seams, groups=fine.panel[fine.faces[:, 0]],
                   materials=[material] * len(fine.panels), body=(body_vertices, body_faces), grain=fine.face_grain())
     cloth.set_control(rest=rest, bend_stiffness=np.asarray(co.bend_stiffness, float))
-    x0 = push_outside(x0, body_vertices, body_faces, float(cloth.model.thickness))
-    cloth.reequilibrate(x0, opts.residual_tol, refine_iterations=200, max_steps=max(opts.drape_steps, 600),
-                        iterations=opts.drape_iterations, cancel=cancel, fast=True, substeps=SUBSTEPS)
-    return fine, rest, np.array(cloth.x)
+    cloth.reset(push_outside(x0, body_vertices, body_faces, float(cloth.model.thickness)))
+    s = cloth.settle(max_steps=opts.output_drape_steps, displacement_tol=opts.output_settle_tol,
+                     iterations=OUTPUT_SWEEPS, substeps=SUBSTEPS, fast=True, cancel=cancel)
+    if not s.settled:
+        raise ValueError(s.message)
+    return fine, rest, np.array(cloth.x), s
 
 
 def _body_assets(model: BodyModel, p) -> BodyAssets:
@@ -215,6 +221,7 @@ def recover(scan, options=None, run_control=None, *, progress=None, cancel=None,
 
     # output resolution (coarse-to-fine through the cage) ------------------------------------------
     g_out, rest_out, x_out, handles_out = g, co.rest, co.x, (cage.handles if cage is not None else None)
+    output_drape = {"criterion": "equilibrium", "residual_tol": opts.residual_tol}
     fine_edge = opts.output_edge_length
     if fine_edge and fine_edge < opts.edge_length:
         if cage is None or remake is None:
@@ -223,9 +230,10 @@ def recover(scan, options=None, run_control=None, *, progress=None, cancel=None,
         else:
             ctl.report("refine")
             try:
-                g_out, rest_out, x_out = _fine_output(g, cage, co, remake(edge_length=fine_edge), material,
-                                                      body_final, model.faces, opts, ctl.token)
+                g_out, rest_out, x_out, settle = _fine_output(g, cage, co, remake(edge_length=fine_edge),
+                                                              material, body_final, model.faces, opts, ctl.token)
                 handles_out = None
+                output_drape = {"criterion": "settled", **settle.to_json()}
             except ValueError as exc:   # nothing produced so far is lost: keep the coarse result
                 warnings.append(f"the fine output mesh (edge {fine_edge} m) did not reach equilibrium ({exc}); "
                                 f"the optimized mesh (edge {opts.edge_length} m) is returned")
@@ -244,6 +252,7 @@ def recover(scan, options=None, run_control=None, *, progress=None, cancel=None,
         "pattern_area_m2": g_final.total_area(), "template_area_m2": g.total_area(),
         "stopped": co.stopped, "rejected_iterations": co.rejected,
         "optimized_vertices": int(len(g.rest)), "output_vertices": int(len(rest_out)),
+        "output_drape": output_drape,
     }
     bend = np.asarray(co.bend_stiffness, float)
     mat = MaterialAssets(bending_stiffness=float(np.exp(np.mean(np.log(bend)))),

@@ -7,7 +7,7 @@ from diffavatar_core.body import BodyModel
 from diffavatar_core.demo import SAMPLE
 from diffavatar_core.pattern.cage import build_cage
 from diffavatar_core.pattern.templates import make_template
-from diffavatar_core.pipeline import recover
+from diffavatar_core.pipeline import RecoverOptions, recover
 from diffavatar_core.pipeline.refine import transfer_pattern, transfer_positions
 
 
@@ -48,10 +48,10 @@ def test_positions_of_an_affine_drape_are_reproduced_inside_the_coarse_mesh(skir
     assert np.median(err) < 1e-9 and err.max() < 0.01, err.max()
 
 
-def test_recover_writes_a_finer_equilibrium_mesh():
-    """recover(..., output_edge_length < edge_length): the result is the finer mesh, at
-    equilibrium, close to the optimized coarse one, with the same pattern area (to the
-    discretisation of the curved outline)."""
+def test_recover_writes_a_finer_settled_mesh():
+    """recover(..., output_edge_length < edge_length): the result is the finer mesh, draped until
+    it stands still (Cloth.settle), outside the body, close to the optimized coarse one, with the
+    same pattern area (to the discretisation of the curved outline)."""
     opts = {"units": "cm", "iterations": 2, "edge_length": 0.07}
     coarse = recover(SAMPLE, opts)
     fine = recover(SAMPLE, {**opts, "output_edge_length": 0.035})
@@ -59,6 +59,21 @@ def test_recover_writes_a_finer_equilibrium_mesh():
     assert fine.metrics["optimized_vertices"] == coarse.metrics["output_vertices"]
     assert len(fine.garment_vertices) == fine.metrics["output_vertices"]
     assert not any("fine output" in w for w in fine.warnings)
+    od = fine.metrics["output_drape"]
+    assert od["criterion"] == "settled" and od["settled"]
+    assert od["max_displacement_mm"] < 1e3 * RecoverOptions.from_config().output_settle_tol
+    assert od["max_penetration_mm"] <= 0.4 and od["seam_gap_max_mm"] < 2.0
+    assert coarse.metrics["output_drape"]["criterion"] == "equilibrium"
     assert fine.garment.total_area() == pytest.approx(coarse.garment.total_area(), rel=0.02)
     assert fine.metrics["chamfer_final_cm"] <= 1.2 * coarse.metrics["chamfer_final_cm"]
     assert fine.metrics["mesh_quality_min"] >= 0.2
+
+
+def test_an_unsettled_fine_mesh_keeps_the_coarse_result():
+    """A fine drape that cannot settle within its step budget is reported and the optimized
+    coarse mesh is returned: nothing already produced is lost."""
+    opts = {"units": "cm", "iterations": 1, "edge_length": 0.07}
+    r = recover(SAMPLE, {**opts, "output_edge_length": 0.035, "output_drape_steps": 10})
+    assert any("fine output" in w and "budget" in w for w in r.warnings), r.warnings
+    assert r.metrics["output_vertices"] == r.metrics["optimized_vertices"]
+    assert r.metrics["output_drape"]["criterion"] == "equilibrium"
