@@ -79,6 +79,7 @@ def run_case(case, variant, iterations, output_edge=0.0):
         "cpu_s": time.process_time() - c0,   # all threads of this process: comparable under load
         "warnings": [w for w in r.warnings if "fragment" not in w],
         "iterations": r.iterations, "stopped": m["stopped"],
+        "output_drape": m.get("output_drape"),
     }
 
 

@@ -77,6 +77,8 @@ class RecoverOptions:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
                 bad(name, "must be a positive number")
+        if not isinstance(self.optimize_body, bool):
+            bad("optimize_body", "must be true or false")
         if self.output_drape_steps < 1:
             bad("output_drape_steps", "must be at least 1")
         if not 0.005 <= self.edge_length <= 0.2:

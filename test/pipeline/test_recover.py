@@ -178,6 +178,8 @@ def test_options_from_node_dict_and_config():
         RecoverOptions.from_config(edge_length=5.0)
     with pytest.raises(ValueError, match="output_edge_length"):
         RecoverOptions.from_config(output_edge_length=0.001)
+    with pytest.raises(ValueError, match="optimize_body"):
+        RecoverOptions.from_config(optimize_body="no")
     with pytest.raises(ValueError, match="output_settle_tol"):
         RecoverOptions.from_config(output_settle_tol=0.0)
     with pytest.raises(ValueError, match="output_drape_steps"):
