@@ -139,19 +139,23 @@ def polyline_length(P: np.ndarray, spacing: float = 0.0) -> float:
 
 @dataclass(frozen=True)
 class BoundaryLengthLoss:
-    value: float       # Σ_loops ½ (L_garment − L_scan)², m²
-    per_loop: dict     # name → ½ (L_garment − L_scan)²
+    value: float       # Σ_loops ½ r², r = L_garment − L_scan beyond ± the tolerance, m²
+    per_loop: dict     # name → ½ r²
     lengths: dict      # name → (L_garment, L_scan), m
     grad: np.ndarray   # dL/dX, #V×3
 
 
-def boundary_length_loss(X, garment_loops: dict, scan_lengths: dict) -> BoundaryLengthLoss:
-    """Σ over loops present on both sides of ½ (L_g − L_s)², L_g the perimeter of the closed
-    garment loop X[idx] (m), L_s the scan loop's (m, e.g. polyline_length of it). Exact gradient:
-    dL_g/dx_a = Σ over the loop edges (a, b) at a of (x_a − x_b)/|x_a − x_b|."""
+def boundary_length_loss(X, garment_loops: dict, scan_lengths: dict, tolerance: dict | None = None) -> BoundaryLengthLoss:
+    """Σ over loops present on both sides of ½ r², r = the part of L_g − L_s beyond ± the loop's
+    tolerance (m; 0 when not given): L_g the perimeter of the closed garment loop X[idx] (m), L_s
+    the scan loop's (m, e.g. polyline_length of it). The tolerance is how far the scan's
+    perimeter can be trusted — a noisy scan loop measures longer than the cloth's edge, a
+    resampled one shorter (it cuts the folds); within it the boundary and interior terms decide.
+    Exact gradient: dL_g/dx_a = Σ over the loop edges (a, b) at a of (x_a − x_b)/|x_a − x_b|."""
     X = val.points("X", X)
     grad = np.zeros_like(X)
     per_loop, lengths = {}, {}
+    tolerance = tolerance or {}
     for name in sorted(set(garment_loops) & set(scan_lengths)):
         idx = np.asarray(garment_loops[name], dtype=np.int64)
         if idx.ndim != 1 or len(idx) < 3 or idx.min() < 0 or idx.max() >= len(X):
@@ -159,12 +163,16 @@ def boundary_length_loss(X, garment_loops: dict, scan_lengths: dict) -> Boundary
         Ls = float(scan_lengths[name])
         if not np.isfinite(Ls) or Ls <= 0:
             raise ValueError(f"scan_lengths[{name!r}]: needs a positive finite length (m), got {Ls}")
+        tol = float(tolerance.get(name, 0.0))
+        if not (np.isfinite(tol) and tol >= 0):
+            raise ValueError(f"tolerance[{name!r}]: needs a finite length >= 0 (m), got {tol}")
         E = X[np.roll(idx, -1)] - X[idx]
         le = np.linalg.norm(E, axis=1)
         if le.min() <= 0:
             raise ValueError(f"garment loop {name!r} has a zero-length edge")
         Lg = float(le.sum())
-        r = Lg - Ls
+        d = Lg - Ls
+        r = float(np.sign(d) * max(abs(d) - tol, 0.0))
         per_loop[name], lengths[name] = 0.5 * r * r, (Lg, Ls)
         U = r * E / le[:, None]
         np.add.at(grad, idx, -U)

@@ -3,16 +3,18 @@
 θ = {control-cage handles ζ of every panel (Eq. 5: x̄ = W ζ) — or every pattern vertex, the
 'without control cage' ablation —, log10 bending stiffness (one per garment or per panel), body
 shape ν and pose ψ}. Each evaluation re-drapes from the previous equilibrium (Newton from the
-warm start; a full XPBD + Newton drape only if that fails), evaluates
+warm start; a full XPBD + Newton drape only if that fails; every `fresh_every` iterations also a
+drape from the template layout, kept as the warm start when its φ is lower), evaluates
     φ = ρ L_boundary + σ L_interior + α L_seam(x̄) + β L_curvature(x̄)
         + δ L_body(ν, ψ) + γ |(ν, ψ) − (ν, ψ)_fit|²,
 (L_body: the scan's visible body points to the posed body surface, full scans only — without it
 the body drifts to explain garment misfit),
 and gets dφ/dθ from the equilibrium adjoint (one sparse solve; the fast mode, exact at a
 converged drape with a fixed contact set — see diffavatar_core/adjoint.py), chained through W
-for ζ and through the skinning Jacobians for ν and ψ. Group Adam keeps the best iterate; an
-iterate with an inverted rest triangle, a seam mismatch above the limit, an unconverged drape
-or a non-finite value is rejected and the step size halved (optim.minimize). Units: m, N·m, rad."""
+for ζ and through the skinning Jacobians for ν and ψ. L-BFGS (lbfgs.py; or group Adam, optim.py):
+an iterate with an inverted rest triangle, a seam mismatch above the limit, an unconverged drape
+or a non-finite value is rejected and the step halved. L_length is zero within ± the scan
+perimeter's tolerance (loss.boundary_length_loss). Units: m, N·m, rad."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -39,6 +41,7 @@ class CoOptResult:
     iterations: int
     rejected: int
     stopped: str
+    fresh_kept: int = 0          # fresh drapes (fresh_every) that became the warm start
 
 
 def seam_mismatch_pct(g, rest) -> float:
@@ -68,8 +71,11 @@ class CoOptObjective:
         self.scan_points = np.asarray(scan_points, np.float64)
         self.scan_loops = scan_loops
         self.loops = {k: v for k, v in garment.boundaries.items() if k in scan_loops}
-        # scan opening perimeters (m), measured at the co-optimization mesh's edge length
-        self.scan_lengths = {k: polyline_length(scan_loops[k], opts.edge_length) for k in self.loops}
+        # scan opening perimeters (m) and how far they are trusted (± m)
+        spacing = opts.edge_length if opts.length_measure == "resampled" else 0.0
+        self.scan_lengths = {k: polyline_length(scan_loops[k], spacing) for k in self.loops}
+        self.length_tol = {k: max(opts.length_tolerance_min, 0.01 * opts.length_tolerance_pct * L)
+                           for k, L in self.scan_lengths.items()}
         self.c0 = cloth.control
         self.ngroups = len(np.asarray(self.c0.bend_stiffness))
         self.seam_reg = SeamLengthRegularizer(garment)
@@ -139,7 +145,7 @@ class CoOptObjective:
         x = np.array(self.cloth.x)
         li = interior_loss(x, self.faces, self.samples, self.scan_points)
         lb = boundary_loss(x, self.loops, self.scan_loops) if self.loops else None
-        ll = boundary_length_loss(x, self.loops, self.scan_lengths) if self.loops else None
+        ll = boundary_length_loss(x, self.loops, self.scan_lengths, self.length_tol) if self.loops else None
         ls, gs = self.seam_reg.value_and_grad(rest)
         lc, gc = self.curv_reg.value_and_grad(rest)
         dphi_dx = w.interior * li.grad + (w.boundary * lb.grad + w.boundary_length * ll.grad if lb is not None else 0.0)
@@ -172,6 +178,50 @@ class CoOptObjective:
         self.x_last = x
         return float(value), grads, terms
 
+    def fresh_drape_at(self, rest, bend, body_vertices):
+        """Equilibrium at these controls from the template's own 3D layout — sewn and draped as
+        the initial drape is, not warm-started. Raises ValueError when it does not converge."""
+        o = self.opts
+        self.cloth.set_control(rest=rest, bend_stiffness=bend, body_vertices=body_vertices)
+        self.cloth.reset(self.g.x0)
+        self.cloth.sew(cancel=self.cancel)
+        r = self.cloth.drape(max_steps=max(o.drape_steps, 1), iterations=o.drape_iterations,
+                             residual_tol=o.residual_tol, refine_iterations=120, raise_on_divergence=False,
+                             cancel=self.cancel)
+        if not r.converged:
+            raise ValueError(f"fresh drape did not converge: {r.message}")
+
+    def _value_or_inf(self, params) -> float:
+        try:
+            v = self(params)[0]
+        except (ValueError, FloatingPointError):
+            return np.inf
+        return v if np.isfinite(v) else np.inf
+
+    def try_fresh(self, params) -> bool:
+        """φ at `params` from the current warm start and from a fresh drape (fresh_drape_at); the
+        lower becomes the warm start (True: the fresh one). Warm-started drapes carry the
+        template's folds along as the pattern changes; a fresh drape lets the cloth find the folds
+        of the current pattern. An evaluation that fails counts as φ = ∞."""
+        x_keep = np.array(self.x_warm)
+        v_warm = self._value_or_inf(params)
+        rest, bend, bp = self.unpack(params)
+        bv = self.model.pose(bp) if self.use_body else None
+        try:
+            self.fresh_drape_at(rest, bend, bv)
+            self.x_warm = np.array(self.cloth.x)
+            v_fresh = self._value_or_inf(params)
+        except ValueError:
+            v_fresh = np.inf
+        self.last_fresh = (v_warm, v_fresh)
+        if v_fresh < v_warm:
+            self.commit()
+            return True
+        self.x_warm = x_keep
+        if np.isfinite(self._value_or_inf(params)):
+            self.commit()
+        return False
+
     def commit(self) -> None:
         """The last evaluated point became the optimizer's current iterate: later re-drapes start
         from (and are anchored to) its drape. Rejected trials never become warm starts — one may
@@ -182,8 +232,8 @@ class CoOptObjective:
 def co_optimize(cloth, garment, scan_points, scan_loops: dict, opts: RecoverOptions, cage=None,
                 body_model=None, body_params: BodyParams | None = None, on_iteration=None,
                 cancelled=lambda: False, cancel=None, body_points=None) -> CoOptResult:
-    """Minimizes CoOptObjective (same arguments) from the template's parameters with group Adam
-    (opts.iterations accepted steps at most); the best iterate is re-draped and returned."""
+    """Minimizes CoOptObjective (same arguments) from the template's parameters (opts.optimizer,
+    opts.iterations accepted steps at most); the last iterate is re-draped and returned."""
     obj = CoOptObjective(cloth, garment, scan_points, scan_loops, opts, cage, body_model, body_params, cancel,
                          body_points)
     params = obj.initial_params()
@@ -192,16 +242,25 @@ def co_optimize(cloth, garment, scan_points, scan_loops: dict, opts: RecoverOpti
         history = [{"iteration": 0, "value": value, "terms": terms, "lr": obj.step_sizes()}]
         if on_iteration:
             on_iteration(history[-1])
-        best, it, rej, stopped = params, 0, 0, "max_iterations"
+        best, it, rej, stopped, kept = params, 0, 0, "max_iterations", 0
     else:
         # stage 1 (optional): the bending stiffness held while the pattern and body fit — a skirt
         # cut too large can otherwise hide its extra cloth in softer folds and never come back
         stages = [opts.iterations]
         if "log_bend" in params and 0 < opts.bending_after < opts.iterations:
             stages = [opts.bending_after, opts.iterations - opts.bending_after]
+        # fresh_every N: chunks of N iterations, each starting from the lower-φ of the warm and a
+        # fresh drape of the current parameters (L-BFGS restarts its memory per chunk)
+        fresh_every = opts.fresh_every if len(stages) == 1 else 0
+        if 0 < fresh_every < opts.iterations:
+            q, r = divmod(opts.iterations, fresh_every)
+            stages = [fresh_every] * q + ([r] if r else [])
         history, it, rej, stopped = [], 0, 0, "max_iterations"
+        fresh_used = []
         for k, n in enumerate(stages):
-            held = {"log_bend": params["log_bend"]} if len(stages) == 2 and k == 0 else {}
+            held = {"log_bend": params["log_bend"]} if len(stages) == 2 and k == 0 and not fresh_every else {}
+            if fresh_every and k > 0:
+                fresh_used.append(obj.try_fresh(params))
             free = {g: v for g, v in params.items() if g not in held}
             lr = {g: v for g, v in obj.step_sizes().items() if g not in held}
 
@@ -230,8 +289,9 @@ def co_optimize(cloth, garment, scan_points, scan_loops: dict, opts: RecoverOpti
             if stopped == "cancelled":
                 break
         best = params
+        kept = int(sum(fresh_used))
     rest, bend, bp = obj.unpack(best)
     bv = body_model.pose(bp) if obj.use_body else None
     obj.drape_at(rest, bend, bv)   # the best iterate's equilibrium
     return CoOptResult(rest, bend, bp if obj.use_body else body_params, bv, np.array(cloth.x), history, it, rej,
-                       stopped)
+                       stopped, kept)

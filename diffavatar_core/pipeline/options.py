@@ -18,7 +18,7 @@ class Weights:
     boundary: float = 1.0
     boundary_length: float = 1.0
     interior: float = 1.0
-    seam: float = 100.0
+    seam: float = 1000.0
     curvature: float = 0.1
     body_data: float = 1.0
     body_prior: float = 1e-2
@@ -54,6 +54,10 @@ class RecoverOptions:
     residual_tol: float = 1e-7
     max_seam_mismatch_pct: float = 5.0
     body_trim_distance: float = 0.05
+    length_measure: str = "raw"
+    fresh_every: int = 5
+    length_tolerance_pct: float = 2.0
+    length_tolerance_min: float = 0.01
     patience: int = 5
     # per run
     garment_type: str | None = None
@@ -68,7 +72,7 @@ class RecoverOptions:
         def bad(name, why):
             raise ValueError(f"recover options: {name} {why}, got {getattr(self, name)!r}")
         for name in ("iterations", "samples", "drape_steps", "drape_iterations", "patience", "bending_after",
-                     "output_drape_steps"):
+                     "output_drape_steps", "fresh_every"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < 0:
                 bad(name, "must be a non-negative integer")
@@ -77,6 +81,12 @@ class RecoverOptions:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
                 bad(name, "must be a positive number")
+        if self.length_measure not in ("raw", "resampled"):
+            bad("length_measure", "must be raw or resampled")
+        for name in ("length_tolerance_pct", "length_tolerance_min"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
+                bad(name, "must be a number >= 0")
         if not isinstance(self.optimize_body, bool):
             bad("optimize_body", "must be true or false")
         if self.output_drape_steps < 1:

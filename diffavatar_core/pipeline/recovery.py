@@ -250,7 +250,7 @@ def recover(scan, options=None, run_control=None, *, progress=None, cancel=None,
         "mesh_quality_min": q.min, "mesh_quality_avg": q.mean,
         "seam_length_mismatch_max_pct": seam_mismatch_pct(g_out, rest_out),
         "pattern_area_m2": g_final.total_area(), "template_area_m2": g.total_area(),
-        "stopped": co.stopped, "rejected_iterations": co.rejected,
+        "stopped": co.stopped, "rejected_iterations": co.rejected, "fresh_drapes_kept": co.fresh_kept,
         "optimized_vertices": int(len(g.rest)), "output_vertices": int(len(rest_out)),
         "output_drape": output_drape,
     }

@@ -168,6 +168,26 @@ def test_boundary_length_loss_measures_the_perimeter_invariantly():
     assert loss.boundary_length_loss(1.1 * C - 0.1 * r.grad, {"hem": loop}, {"hem": L}).value < r.value
 
 
+def test_boundary_length_loss_tolerance_is_a_dead_band():
+    """With a tolerance δ the loss is ½ (|L_g − L_s| − δ)² beyond ± δ and exactly zero (value and
+    gradient) within it; the gradient matches central differences outside the band."""
+    theta = np.linspace(0, 2 * np.pi, 64, endpoint=False)
+    C = np.column_stack([0.2 * np.cos(theta), np.zeros(64), 0.2 * np.sin(theta)])
+    loop = np.arange(64)
+    L = 64 * 2 * 0.2 * np.sin(np.pi / 64)
+    tol = {"hem": 0.05 * L}
+    for s in (0.97, 1.0, 1.04):   # within ± 5%
+        r = loss.boundary_length_loss(s * C, {"hem": loop}, {"hem": L}, tol)
+        assert r.value == 0.0 and not r.grad.any()
+    for s in (0.9, 1.1):
+        r = loss.boundary_length_loss(s * C, {"hem": loop}, {"hem": L}, tol)
+        assert r.value == pytest.approx(0.5 * ((abs(s - 1) - 0.05) * L) ** 2, rel=1e-9)
+        f = lambda Y: (lambda q: (q.value, q.grad))(loss.boundary_length_loss(Y, {"hem": loop}, {"hem": L}, tol))
+        _fd_check(f, s * C + np.random.default_rng(1).normal(scale=1e-3, size=C.shape))
+    with pytest.raises(ValueError, match="tolerance"):
+        loss.boundary_length_loss(C, {"hem": loop}, {"hem": L}, {"hem": -0.01})
+
+
 def test_polyline_length_resists_noise_at_the_mesh_scale():
     """A 2 mm-noise, 5 mm-spaced sampling of a 20 cm circle is ~10% longer than the circle when
     measured point to point; through points every 4 cm it is within 1.5%."""
@@ -180,3 +200,4 @@ def test_polyline_length_resists_noise_at_the_mesh_scale():
     assert loss.polyline_length(P, spacing=0.04) == pytest.approx(true, rel=0.015)
     with pytest.raises(ValueError, match="3 points"):
         loss.polyline_length(P[:2])
+

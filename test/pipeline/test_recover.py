@@ -116,6 +116,7 @@ def test_end_to_end_recovery_moves_toward_the_ground_truth(recovered):
     area_gt = truth["pattern_area_m2"]
     assert abs(m["pattern_area_m2"] - area_gt) < 0.6 * abs(m["template_area_m2"] - area_gt)
     assert m["seam_length_mismatch_max_pct"] <= 5.0
+    assert m["fresh_drapes_kept"] in (0, 1)   # 6 iterations, fresh_every 5: one fresh drape tried
     assert m["mesh_quality_min"] > 0.05
     assert [s for s in ("preprocess", "body", "drape", "optimize", "metrics") if s in stages] == \
         ["preprocess", "body", "drape", "optimize", "metrics"]
@@ -180,6 +181,12 @@ def test_options_from_node_dict_and_config():
         RecoverOptions.from_config(output_edge_length=0.001)
     with pytest.raises(ValueError, match="optimize_body"):
         RecoverOptions.from_config(optimize_body="no")
+    with pytest.raises(ValueError, match="length_measure"):
+        RecoverOptions.from_config(length_measure="smooth")
+    with pytest.raises(ValueError, match="length_tolerance_pct"):
+        RecoverOptions.from_config(length_tolerance_pct=-1)
+    with pytest.raises(ValueError, match="fresh_every"):
+        RecoverOptions.from_config(fresh_every=-1)
     with pytest.raises(ValueError, match="output_settle_tol"):
         RecoverOptions.from_config(output_settle_tol=0.0)
     with pytest.raises(ValueError, match="output_drape_steps"):
@@ -235,3 +242,42 @@ def test_units_and_up_axis_give_the_same_scan_frame():
     b = load_scan((mm_z, F, L), units="mm", up="z")
     assert np.allclose(a.vertices, b.vertices, atol=1e-9)
     assert set(a.boundaries) == set(b.boundaries) == {"waist", "hem"}
+
+
+def test_a_fresh_drape_does_not_depend_on_the_previous_state(skirt_problem):
+    """CoOptObjective.fresh_drape_at drapes from the template's layout (sewn, not warm-started):
+    the same parameters give the same equilibrium whatever the cloth held before."""
+    model, p, g, cloth, pts, loops = skirt_problem
+    x_keep, rest_keep = np.array(cloth.x), np.array(cloth.control.rest)
+    obj = CoOptObjective(cloth, g, pts, loops, RecoverOptions.from_config(residual_tol=1e-8, samples=200),
+                         cage=build_cage(g))
+    theta = obj.initial_params()
+    rest, bend, _ = obj.unpack(theta)
+    obj.fresh_drape_at(rest, bend, None)
+    x1 = np.array(cloth.x)
+    obj(dict(theta, handles=theta["handles"] * 1.01))   # another equilibrium in the cloth's state
+    assert np.abs(np.array(cloth.x) - x1).max() > 1e-4
+    obj.fresh_drape_at(rest, bend, None)
+    np.testing.assert_array_equal(np.array(cloth.x), x1)
+    assert cloth.solver.residual(cloth.x, np.array([0, -9.81, 0.0])) <= 1e-8
+    cloth.set_control(rest=rest_keep)
+    cloth.reset(x_keep)
+
+
+def test_try_fresh_keeps_the_lower_loss_warm_start(skirt_problem):
+    """try_fresh evaluates φ from the current warm start and from a fresh drape of the same
+    parameters and keeps the lower as the next warm start: the next evaluation starts from it."""
+    model, p, g, cloth, pts, loops = skirt_problem
+    x_keep, rest_keep = np.array(cloth.x), np.array(cloth.control.rest)
+    obj = CoOptObjective(cloth, g, pts, loops, RecoverOptions.from_config(residual_tol=1e-8, samples=200),
+                         cage=build_cage(g))
+    theta = obj.initial_params()
+    theta["handles"] = theta["handles"] * 1.04
+    obj(theta)
+    obj.commit()
+    used = obj.try_fresh(theta)
+    v_warm, v_fresh = obj.last_fresh
+    assert np.isfinite(v_warm) and used == (v_fresh < v_warm)
+    assert np.array_equal(obj.x_warm, obj.x_last)     # the kept equilibrium is the warm start
+    cloth.set_control(rest=rest_keep)
+    cloth.reset(x_keep)
