@@ -235,7 +235,7 @@ def recover(scan, options=None, run_control=None, *, progress=None, cancel=None,
                 handles_out = None
                 output_drape = {"criterion": "settled", **settle.to_json()}
             except ValueError as exc:   # nothing produced so far is lost: keep the coarse result
-                warnings.append(f"the fine output mesh (edge {fine_edge} m) did not reach equilibrium ({exc}); "
+                warnings.append(f"the fine output mesh (edge {fine_edge} m) did not settle ({exc}); "
                                 f"the optimized mesh (edge {opts.edge_length} m) is returned")
 
     # result ------------------------------------------------------------------------------------

@@ -5,7 +5,8 @@ the pattern plane, so the fine mesh's vertices take the mean value coordinates o
 cage (at the template's handle positions ζ₀) and the recovered handles ζ. Linear precision of
 MVC makes this exact at ζ = ζ₀ (the fine template maps to itself). The fine drape is warm-
 started from the coarse equilibrium (each fine vertex at the coarse draped position of its
-pattern location) and re-equilibrated by Newton. Lengths in m."""
+pattern location) and draped by XPBD until it stands still (pipeline/recovery._fine_output,
+Cloth.settle). Lengths in m."""
 from __future__ import annotations
 
 import numpy as np

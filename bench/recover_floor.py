@@ -1,0 +1,104 @@
+"""What the recovery benchmark's Chamfer can reach at best on the template's mesh (issue 7): for
+each synthetic case, the template mesh deformed through its own control cage so that its outline
+is the ground-truth pattern's (every handle placed on the true outline at the same arc-length
+position between corresponding corners), with the true bending stiffness and the true body, draped
+(a) fresh from the template layout and (b) along a warm path from the template's drape (the
+outline moved to the truth in 10 re-equilibrated steps, as an optimizer would). Prints JSON
+per case (Chamfer to the scan, cm) next to the true drape's own Chamfer (the noise floor) and the
+unmodified template's. Not a test: the ratio target of bench/recover.py assumes the truth's own
+drape, which a recovery on another triangulation need not reproduce fold for fold.
+
+Run: `.venv/bin/python bench/recover_floor.py [--templates skirt,tshirt] [--cases 3]`."""
+import argparse
+import json
+
+import numpy as np
+
+from diffavatar_core.body import BodyModel
+from diffavatar_core.metrics import chamfer_meshes
+from diffavatar_core.pattern.cage import build_cage, cage_handles
+from diffavatar_core.pattern.templates import make_template
+from diffavatar_core.pipeline.synthetic import make_case
+from diffavatar_core.scan import load_scan
+from diffavatar_core.sim.cloth import Cloth
+from diffavatar_core.sim.material import ClothMaterial
+
+
+def _arc(P):
+    return np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.roll(P, -1, 0) - P, axis=1))])
+
+
+def truth_handles(g, cage, gt) -> np.ndarray:
+    """(H, 2) m: the cage handles of template g moved onto the truth's outline, piecewise by arc
+    length between corresponding corners (30° corners, as bench/recover.py's edge error)."""
+    zeta = cage.zeta0.copy()
+    for p, (pt, pg) in enumerate(zip(g.panels, gt.panels)):
+        Pt, Pg = g.rest[pt.loop], gt.rest[pg.loop]
+        ct, cg = cage_handles(Pt, 30.0), cage_handles(Pg, 30.0)
+        if len(ct) != len(cg):
+            raise ValueError(f"panel {p}: {len(ct)} corners on the template, {len(cg)} on the truth")
+        st, sg = _arc(Pt), _arc(Pg)
+        xt = np.concatenate([st[ct], [st[-1] + st[ct[0]]]])
+        xg = np.concatenate([sg[cg], [sg[-1] + sg[cg[0]]]])
+        where = {int(v): i for i, v in enumerate(pt.loop)}
+        for h in np.flatnonzero(cage.handle_panel == p):
+            s = st[where[int(cage.handles[h])]]
+            s = s if s >= xt[0] else s + st[-1]
+            u = np.interp(s, xt, xg) % sg[-1]
+            j = min(int(np.searchsorted(sg, u, side="right")) - 1, len(Pg) - 1)
+            t = (u - sg[j]) / max(sg[j + 1] - sg[j], 1e-12)
+            zeta[h] = (1 - t) * Pg[j] + t * Pg[(j + 1) % len(Pg)]
+    return zeta
+
+
+def floor_case(template: str, seed: int, bend: float) -> dict:
+    case = make_case(template, seed=seed, bend_stiffness=bend)
+    g = make_template(template, landmarks=BodyModel.default().landmarks(case.body_params), edge_length=0.04)
+    cage = build_cage(g)
+    rest_truth = cage.rest(truth_handles(g, cage, case.garment))
+    scan = load_scan((case.scan_vertices, case.scan_faces, case.scan_labels), units=case.units, up=case.up)
+    Vs, Fs = scan.garment_mesh()
+    cm = lambda x, F: 100 * chamfer_meshes(np.asarray(x), F, Vs, Fs, samples=20000)
+
+    def cloth(rest):
+        c = Cloth(g.rest, g.faces, g.x0, seams=g.seams, groups=g.panel[g.faces[:, 0]],
+                  materials=[ClothMaterial(bend_stiffness=bend)] * len(g.panels),
+                  body=(case.body_vertices, case.body_faces), grain=g.face_grain())
+        c.set_control(rest=rest)
+        c.sew()
+        return c
+
+    def drape(c):
+        r = c.drape(max_steps=200, iterations=40, residual_tol=1e-7, refine_iterations=120, raise_on_divergence=False)
+        return bool(r.converged)
+    out = {"template": template, "seed": seed, "bend_stiffness_Nm": bend,
+           "truth_drape_cm": cm(case.garment_x, case.garment.faces)}
+    c = cloth(g.rest)
+    out["template_converged"] = drape(c)
+    out["template_cm"] = cm(c.x, g.faces)
+    for a in np.linspace(0.1, 1.0, 10):   # warm path from the template's drape
+        c.set_control(rest=(1 - a) * g.rest + a * rest_truth)
+        c.reequilibrate(np.array(c.x), 1e-7, max_steps=200, iterations=40)
+    out["truth_outline_warm_cm"] = cm(c.x, g.faces)
+    c = cloth(rest_truth)
+    out["truth_outline_fresh_converged"] = drape(c)
+    out["truth_outline_fresh_cm"] = cm(c.x, g.faces)
+    return out
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--templates", default="skirt,tshirt")
+    ap.add_argument("--cases", type=int, default=3)
+    args = ap.parse_args()
+    rows = []
+    for tpl in args.templates.split(","):
+        for k in range(args.cases):
+            bend = 10 ** (-6 + 2 * k / max(args.cases - 1, 1))   # as bench/recover.py
+            rows.append(floor_case(tpl, 100 + k, bend))
+            print(json.dumps(rows[-1]), flush=True)
+    print(json.dumps({"benchmark": "recover_floor", "cases": rows}, indent=2))
+
+
+if __name__ == "__main__":
+    main()
