@@ -85,6 +85,7 @@ class CoOptObjective:
         self.model, self.p0 = body_model, (body_params.copy() if body_params is not None else None)
         self.x_warm = np.array(cloth.x)   # start and anchor of every re-drape: the current iterate's drape
         self.x_last = self.x_warm
+        self.last_fresh = None   # (φ warm, φ fresh) of the last try_fresh
         bp = np.zeros((0, 3)) if body_points is None else np.asarray(body_points, np.float64).reshape(-1, 3)
         if len(bp) > opts.samples:   # a fixed, reproducible subset
             bp = bp[np.random.default_rng(0).choice(len(bp), opts.samples, replace=False)]
@@ -217,9 +218,7 @@ class CoOptObjective:
         if v_fresh < v_warm:
             self.commit()
             return True
-        self.x_warm = x_keep
-        if np.isfinite(self._value_or_inf(params)):
-            self.commit()
+        self.x_warm = x_keep   # the optimizer's next evaluation re-drapes from it
         return False
 
     def commit(self) -> None:
