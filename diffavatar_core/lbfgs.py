@@ -35,7 +35,8 @@ def minimize_lbfgs(evaluate: Callable[[dict], tuple], params: dict, step: dict, 
                    rel_tol: float = 1e-4, patience: int = 5, memory: int = 8, max_step: float = 4.0,
                    c1: float = 1e-4, max_backtracks: int = 6, on_iteration: Callable | None = None,
                    cancelled: Callable[[], bool] = lambda: False, on_accept: Callable | None = None,
-                   reevaluate: bool = False) -> OptimizeResult:
+                   reevaluate: bool = False, precondition: dict | None = None,
+                   on_revert: Callable | None = None) -> OptimizeResult:
     """Minimizes evaluate(params) -> (value, grads, terms). step: per-group scale (the unit move;
     e.g. m for handles). A step is at most `max_step` units in any component. Stops after
     `max_iterations` accepted steps, when `patience` successive steps improved the loss by less
@@ -46,11 +47,30 @@ def minimize_lbfgs(evaluate: Callable[[dict], tuple], params: dict, step: dict, 
     on_accept() is called when a point becomes the current iterate. reevaluate: the objective
     depends on its evaluation history (the recovery's equilibria are anchored to the current
     iterate's drape), so an accepted point is evaluated once more after on_accept() and the line
-    search compares trials with that value — the same anchor on both sides of the comparison."""
+    search compares trials with that value — the same anchor on both sides of the comparison. A
+    trial whose re-evaluation fails (its drape does not re-drape from itself) is rejected like a
+    failed trial, after on_revert() (which undoes the on_accept() of that trial).
+
+    precondition: {group: P} with P(v) a symmetric positive definite linear operator on the group's
+    flattened vector (in step units), largest eigenvalue ≤ 1: the initial inverse Hessian H₀ of the
+    two-loop recursion (identity for the other groups), i.e. the metric of the first, steepest-
+    descent step and of every restart (e.g. pattern.sobolev.SobolevMetric for the handles)."""
     names = sorted(params)
     if any(not (np.isfinite(step.get(k, np.nan)) and step[k] > 0) for k in names):
         raise ValueError(f"step: every group needs a positive finite scale, got {step}")
     scale = np.concatenate([np.full(np.size(params[k]), float(step[k])) for k in names])
+    bounds = np.cumsum([0] + [int(np.size(params[k])) for k in names])
+    if precondition and set(precondition) - set(names):
+        raise ValueError(f"precondition: unknown group(s) {sorted(set(precondition) - set(names))}")
+    pre = {names.index(k): op for k, op in (precondition or {}).items()}
+
+    def H0(v):
+        if not pre:
+            return v
+        out = v.copy()
+        for i, op in pre.items():
+            out[bounds[i]:bounds[i + 1]] = op(v[bounds[i]:bounds[i + 1]])
+        return out
 
     def f(u):
         p = _unflatten(u * scale, params, names)
@@ -81,14 +101,16 @@ def minimize_lbfgs(evaluate: Callable[[dict], tuple], params: dict, step: dict, 
             a = (s @ q) / (y @ s)
             alphas.append(a)
             q -= a * y
-        gamma = (S[-1] @ Y[-1]) / (Y[-1] @ Y[-1]) if S else 1.0 / max(np.abs(g).max(), 1e-300)
-        r = gamma * q
+        r = H0(q)
+        gamma = (S[-1] @ Y[-1]) / (Y[-1] @ H0(Y[-1])) if S else 1.0 / max(np.abs(r).max(), 1e-300)
+        r = gamma * r
         for (s, y), a in zip(zip(S, Y), reversed(alphas)):
             r += s * (a - (y @ r) / (y @ s))
         d = -r
         if not g @ d < 0:   # not a descent direction (numerical): restart from steepest descent
             S, Y = [], []
-            d = -g / max(np.abs(g).max(), 1e-300)
+            d = -H0(g)
+            d /= max(np.abs(d).max(), 1e-300)
         big = np.abs(d).max()
         if big > max_step:
             d *= max_step / big
@@ -101,6 +123,15 @@ def minimize_lbfgs(evaluate: Callable[[dict], tuple], params: dict, step: dict, 
                 ok = v_new <= value + c1 * alpha * (g @ d)
             except (ValueError, FloatingPointError):
                 ok = False
+            if ok and reevaluate:   # the trial becomes the anchor; it must re-evaluate from itself
+                if on_accept:
+                    on_accept()
+                try:
+                    v_re, g_re, t_re = f(u + alpha * d)
+                except (ValueError, FloatingPointError):
+                    ok = False
+                    if on_revert:
+                        on_revert()
             if ok:
                 break
             rejected += 1
@@ -125,15 +156,10 @@ def minimize_lbfgs(evaluate: Callable[[dict], tuple], params: dict, step: dict, 
                 S.pop(0)
                 Y.pop(0)
         u, value, g, terms = u + s_k, v_new, g_new, t_new
+        if reevaluate:
+            value, g, terms = v_re, g_re, t_re
         if on_accept:
             on_accept()
-        if reevaluate:
-            try:
-                value, g, terms = f(u)
-                if on_accept:
-                    on_accept()
-            except (ValueError, FloatingPointError):
-                pass   # keep the trial's own evaluation
         accepted += 1
         taken = np.abs(s_k).max()
         history.append({"iteration": accepted, "value": value, "terms": terms,

@@ -106,3 +106,71 @@ def test_lbfgs_cancel_and_bad_scales():
     assert res.stopped == "cancelled" and res.iterations == 2
     with pytest.raises(ValueError, match="step"):
         minimize_lbfgs(evaluate, {"a": np.zeros(2), "b": np.zeros(1)}, {"a": 0.0, "b": 1.0})
+
+
+def _chain_quadratic(n=24):
+    """½ uᵀAu − bᵀu with A a 1D Laplacian + 1e-3 I (condition ~ 4e3): smooth modes are cheap,
+    zig-zags stiff — the structure of the cage handles' loss."""
+    A = 2.0 * np.eye(n) - np.eye(n, k=1) - np.eye(n, k=-1) + 1e-3 * np.eye(n)
+    b = np.random.default_rng(0).normal(size=n)
+    x_star = np.linalg.solve(A, b)
+
+    def evaluate(p):
+        u = p["h"]
+        return float(0.5 * u @ A @ u - b @ u), {"h": A @ u - b}, {}
+    return A, x_star, evaluate
+
+
+def test_lbfgs_initial_metric_preconditions_and_identity_changes_nothing():
+    """precondition = the exact inverse Hessian (normalised to a unit top eigenvalue) solves the
+    ill-conditioned quadratic in a few steps, where the Euclidean start needs many more; an identity
+    operator reproduces the unpreconditioned iterates exactly; an unknown group is refused."""
+    A, x_star, evaluate = _chain_quadratic()
+    Ainv = np.linalg.inv(A)
+    P = Ainv / np.linalg.eigvalsh(Ainv).max()
+    fmin = evaluate({"h": x_star})[0]
+    kw = dict(max_iterations=200, rel_tol=0.0, patience=1000, max_step=1e6)
+    x0 = {"h": np.zeros(len(A))}
+
+    def iterations_to(res, tol=1e-8):
+        gap = [h["value"] - fmin for h in res.history]
+        return next((i for i, v in enumerate(gap) if v <= tol * abs(fmin)), None)
+
+    pre = minimize_lbfgs(evaluate, x0, {"h": 1.0}, precondition={"h": lambda v: P @ v}, **kw)
+    plain = minimize_lbfgs(evaluate, x0, {"h": 1.0}, **kw)
+    n_pre, n_plain = iterations_to(pre), iterations_to(plain)
+    assert n_pre is not None and n_pre <= 3, n_pre
+    assert n_plain is None or n_plain > 3 * n_pre, (n_plain, n_pre)
+    np.testing.assert_allclose(pre.params["h"], x_star, rtol=1e-5, atol=1e-6)
+    same = minimize_lbfgs(evaluate, x0, {"h": 1.0}, precondition={"h": lambda v: v.copy()}, **kw)
+    assert [h["value"] for h in same.history] == [h["value"] for h in plain.history]
+    with pytest.raises(ValueError, match="precondition"):
+        minimize_lbfgs(evaluate, x0, {"h": 1.0}, precondition={"other": lambda v: v})
+
+
+def test_lbfgs_rejects_a_trial_that_does_not_reevaluate_from_itself():
+    """reevaluate: an accepted trial becomes the anchor (on_accept) and is evaluated again; when
+    that fails (in the recovery: its drape does not re-drape from itself) the trial is rejected
+    like an invalid one, after on_revert() undoes the anchor — the optimizer never stands on it."""
+    evaluate, target = _quadratic(scale=1.0)
+    state = {"anchor": None, "prev": None, "reverts": 0}
+
+    def anchored(p):   # a[0] > 0.5 evaluates as a trial but not from its own anchor
+        key = tuple(np.round(np.concatenate([p["a"], p["b"]]), 12))
+        if p["a"][0] > 0.5 and key == state["anchor"]:
+            raise ValueError("re-drape left the cloth inside the body")
+        state["last"] = key
+        return evaluate(p)
+
+    def accept():
+        state["prev"], state["anchor"] = state["anchor"], state["last"]
+
+    def revert():
+        state["anchor"] = state["prev"]
+        state["reverts"] += 1
+    res = minimize_lbfgs(anchored, {"a": np.zeros(2), "b": np.zeros(1)}, {"a": 0.3, "b": 0.3},
+                         max_iterations=100, on_accept=accept, on_revert=revert, reevaluate=True)
+    assert state["reverts"] > 0 and res.rejected >= state["reverts"]
+    assert res.params["a"][0] <= 0.5 and state["anchor"][0] <= 0.5
+    values = [h["value"] for h in res.history]
+    assert res.value < 0.3 * values[0]
