@@ -5,7 +5,8 @@ Each case (pipeline/synthetic.py): a built-in template with measurements perturb
 a bending stiffness log-uniform in [1e-6, 1e-4] N·m (two orders of magnitude), a body with
 random shape → sew + drape → scan-like mesh (subdivided, 2 mm noise, holes, floating
 fragments, cm). Recovery starts from the unperturbed template and the default material.
-Variants: full; no_cage (every pattern vertex optimized); no_seam (α = 0); no_curvature (β = 0).
+Variants: full; no_cage (every pattern vertex optimized); no_seam (α = 0); no_curvature (β = 0);
+euclidean (L-BFGS without the H¹ metric on the pattern, sobolev_length 0: the reference run).
 
 Run: `.venv/bin/python bench/recover.py [--cases N] [--iterations N] [--variants full,no_cage]
 [--output-edge 0.008] [--first-case K]`.
@@ -26,6 +27,7 @@ from diffavatar_core.pipeline.options import Weights
 from diffavatar_core.pipeline.synthetic import make_case
 
 VARIANTS = ("full", "no_cage", "no_seam", "no_curvature")
+EXTRA_VARIANTS = ("euclidean",)   # not an ablation of the paper: the L-BFGS metric before the H¹ one
 
 
 def corner_edge_lengths(g) -> list:
@@ -57,6 +59,10 @@ def options_for(variant, iterations, output_edge=0.0):
         return o.with_(weights=Weights(**{**o.weights.__dict__, "seam": 0.0}))
     if variant == "no_curvature":
         return o.with_(weights=Weights(**{**o.weights.__dict__, "curvature": 0.0}))
+    if variant == "euclidean":
+        return o.with_(sobolev_length=0.0)
+    if variant != "full":
+        raise ValueError(f"unknown variant {variant!r}: one of {VARIANTS + EXTRA_VARIANTS}")
     return o
 
 

@@ -27,6 +27,7 @@ from ..loss import body_data_loss, boundary_length_loss, boundary_loss, garment_
 from ..lbfgs import minimize_lbfgs
 from ..optim import minimize
 from ..pattern.regularizers import CurvatureRegularizer, SeamLengthRegularizer
+from ..pattern.sobolev import SobolevMetric
 from .options import RecoverOptions
 
 
@@ -84,7 +85,7 @@ class CoOptObjective:
         self.use_body = bool(opts.optimize_body and body_model is not None and body_params is not None)
         self.model, self.p0 = body_model, (body_params.copy() if body_params is not None else None)
         self.x_warm = np.array(cloth.x)   # start and anchor of every re-drape: the current iterate's drape
-        self.x_last = self.x_warm
+        self.x_last = self.x_prev = self.x_warm
         self.last_fresh = None   # (φ warm, φ fresh) of the last try_fresh
         bp = np.zeros((0, 3)) if body_points is None else np.asarray(body_points, np.float64).reshape(-1, 3)
         if len(bp) > opts.samples:   # a fixed, reproducible subset
@@ -110,6 +111,14 @@ class CoOptObjective:
         if self.use_body:
             lr["shape"], lr["pose"] = s.shape, s.pose
         return lr
+
+    def precondition(self) -> dict:
+        """{'handles': SobolevMetric} (opts.sobolev_length > 0), the L-BFGS initial metric of the
+        pattern parameters, built on the template's rest pattern; {} when off."""
+        if not self.opts.sobolev_length:
+            return {}
+        W = self.cage.W if self.cage is not None else None
+        return {"handles": SobolevMetric(self.g.rest, self.faces, W, self.opts.sobolev_length)}
 
     def unpack(self, params):
         """(rest (V, 2) m, bend (G,) N·m, BodyParams or None) of a parameter dict."""
@@ -225,7 +234,11 @@ class CoOptObjective:
         """The last evaluated point became the optimizer's current iterate: later re-drapes start
         from (and are anchored to) its drape. Rejected trials never become warm starts — one may
         have found another equilibrium (a skirt slid off the hips)."""
-        self.x_warm = self.x_last
+        self.x_prev, self.x_warm = self.x_warm, self.x_last
+
+    def revert(self) -> None:
+        """Undoes the last commit() (its iterate was not accepted after all)."""
+        self.x_warm = self.x_prev
 
 
 def co_optimize(cloth, garment, scan_points, scan_loops: dict, opts: RecoverOptions, cage=None,
@@ -243,22 +256,41 @@ def co_optimize(cloth, garment, scan_points, scan_loops: dict, opts: RecoverOpti
             on_iteration(history[-1])
         best, it, rej, stopped, kept = params, 0, 0, "max_iterations", 0
     else:
-        # stage 1 (optional): the bending stiffness held while the pattern and body fit — a skirt
-        # cut too large can otherwise hide its extra cloth in softer folds and never come back
-        stages = [opts.iterations]
-        if "log_bend" in params and 0 < opts.bending_after < opts.iterations:
-            stages = [opts.bending_after, opts.iterations - opts.bending_after]
-        # fresh_every N: chunks of N iterations, each starting from the lower-φ of the warm and a
-        # fresh drape of the current parameters (L-BFGS restarts its memory per chunk)
-        fresh_every = opts.fresh_every if len(stages) == 1 else 0
-        if 0 < fresh_every < opts.iterations:
-            q, r = divmod(opts.iterations, fresh_every)
-            stages = [fresh_every] * q + ([r] if r else [])
+        # stages: the optimization restarts (L-BFGS memory cleared) at every cut —
+        # bending_after / body_after: the bending stiffness / the body held until then (a skirt cut
+        # too large can otherwise hide its extra cloth in softer folds; a body can absorb a misfit
+        # of the pattern); fresh_every N: every N iterations the lower-φ of the warm and a fresh
+        # drape of the current parameters becomes the warm start
+        n_it, fresh_every = opts.iterations, opts.fresh_every
+        bend_after = opts.bending_after if "log_bend" in params else 0
+        body_after = opts.body_after if obj.use_body else 0
+        cuts = {0, n_it} | {c for c in (bend_after, body_after) if 0 < c < n_it}
+        if 0 < fresh_every < n_it:
+            cuts |= set(range(fresh_every, n_it, fresh_every))
+        cuts = sorted(cuts)
         history, it, rej, stopped = [], 0, 0, "max_iterations"
         fresh_used = []
-        for k, n in enumerate(stages):
-            held = {"log_bend": params["log_bend"]} if len(stages) == 2 and k == 0 and not fresh_every else {}
-            if fresh_every and k > 0:
+        pre = obj.precondition() if opts.optimizer == "lbfgs" else {}
+
+        def run_stage(evaluate, free, lr, n, report):
+            if opts.optimizer == "lbfgs":
+                return minimize_lbfgs(evaluate, free, lr, max_iterations=n, patience=opts.patience,
+                                      on_iteration=report, cancelled=cancelled, on_accept=obj.commit,
+                                      reevaluate=True, precondition=pre, on_revert=obj.revert)
+
+            def accepted(h):
+                obj.commit()
+                report(h)
+            return minimize(evaluate, free, lr, max_iterations=n, patience=opts.patience,
+                            on_iteration=accepted, cancelled=cancelled)
+        for start, end in zip(cuts, cuts[1:]):
+            n = end - start
+            held = {}
+            if start < bend_after:
+                held["log_bend"] = params["log_bend"]
+            if start < body_after:
+                held.update(shape=params["shape"], pose=params["pose"])
+            if fresh_every and 0 < start < n_it and start % fresh_every == 0:
                 fresh_used.append(obj.try_fresh(params))
             free = {g: v for g, v in params.items() if g not in held}
             lr = {g: v for g, v in obj.step_sizes().items() if g not in held}
@@ -274,15 +306,13 @@ def co_optimize(cloth, garment, scan_points, scan_loops: dict, opts: RecoverOpti
                 history.append(h)
                 if on_iteration:
                     on_iteration(h)
-            if opts.optimizer == "lbfgs":
-                res = minimize_lbfgs(evaluate, free, lr, max_iterations=n, patience=opts.patience,
-                                     on_iteration=report, cancelled=cancelled, on_accept=obj.commit, reevaluate=True)
-            else:
-                def accepted(h, report=report):
-                    obj.commit()
-                    report(h)
-                res = minimize(evaluate, free, lr, max_iterations=n, patience=opts.patience,
-                               on_iteration=accepted, cancelled=cancelled)
+            try:
+                res = run_stage(evaluate, free, lr, n, report)
+            except (ValueError, FloatingPointError):
+                # the stage's start (the last accepted iterate) no longer re-drapes from its own
+                # equilibrium: keep that iterate and its committed drape rather than lose the run
+                stopped = "invalid_start"
+                break
             params = {**res.params, **held}
             it, rej, stopped = it + res.iterations, rej + res.rejected, res.stopped
             if stopped == "cancelled":
@@ -291,6 +321,10 @@ def co_optimize(cloth, garment, scan_points, scan_loops: dict, opts: RecoverOpti
         kept = int(sum(fresh_used))
     rest, bend, bp = obj.unpack(best)
     bv = body_model.pose(bp) if obj.use_body else None
-    obj.drape_at(rest, bend, bv)   # the best iterate's equilibrium
+    try:
+        obj.drape_at(rest, bend, bv)   # the best iterate's equilibrium
+    except ValueError:   # keep its committed (anchored) equilibrium
+        cloth.set_control(rest=rest, bend_stiffness=bend, body_vertices=bv)
+        cloth.reset(obj.x_warm)
     return CoOptResult(rest, bend, bp if obj.use_body else body_params, bv, np.array(cloth.x), history, it, rej,
                        stopped, kept)

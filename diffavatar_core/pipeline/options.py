@@ -44,6 +44,7 @@ class RecoverOptions:
     optimizer: str = "lbfgs"
     bending: str = "garment"
     bending_after: int = 0
+    body_after: int = 0
     optimize_body: bool = True
     weights: Weights = field(default_factory=Weights)
     step_sizes: StepSizes = field(default_factory=StepSizes)
@@ -59,6 +60,7 @@ class RecoverOptions:
     length_tolerance_pct: float = 2.0
     length_tolerance_min: float = 0.01
     patience: int = 5
+    sobolev_length: float = 0.3
     # per run
     garment_type: str | None = None
     template: str | None = None          # a template file (OBJ with UVs / GarmentCode JSON)
@@ -72,7 +74,7 @@ class RecoverOptions:
         def bad(name, why):
             raise ValueError(f"recover options: {name} {why}, got {getattr(self, name)!r}")
         for name in ("iterations", "samples", "drape_steps", "drape_iterations", "patience", "bending_after",
-                     "output_drape_steps", "fresh_every"):
+                     "body_after", "output_drape_steps", "fresh_every"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < 0:
                 bad(name, "must be a non-negative integer")
@@ -83,7 +85,7 @@ class RecoverOptions:
                 bad(name, "must be a positive number")
         if self.length_measure not in ("raw", "resampled"):
             bad("length_measure", "must be raw or resampled")
-        for name in ("length_tolerance_pct", "length_tolerance_min"):
+        for name in ("length_tolerance_pct", "length_tolerance_min", "sobolev_length"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
                 bad(name, "must be a number >= 0")

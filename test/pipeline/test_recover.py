@@ -85,6 +85,7 @@ def test_only_committed_iterates_become_warm_starts(skirt_problem):
     """A trial the optimizer rejects must not be the next evaluation's start (a trial can find
     another equilibrium, e.g. a skirt slid off the hips); an accepted one must."""
     model, p, g, cloth, pts, loops = skirt_problem
+    x_keep, rest_keep = np.array(cloth.x), np.array(cloth.control.rest)
     obj = CoOptObjective(cloth, g, pts, loops, RecoverOptions.from_config(residual_tol=1e-8, samples=200),
                          cage=build_cage(g))
     x0 = np.array(obj.x_warm)
@@ -94,6 +95,38 @@ def test_only_committed_iterates_become_warm_starts(skirt_problem):
     assert np.array_equal(obj.x_warm, x0) and np.abs(obj.x_last - x0).max() > 1e-4
     obj.commit()
     assert np.array_equal(obj.x_warm, obj.x_last)
+    cloth.set_control(rest=rest_keep)
+    cloth.reset(x_keep)
+
+
+def test_h1_metric_step_descends(skirt_problem):
+    """The objective's L-BFGS metric on the handles (sobolev_length > 0) has one row per handle
+    coordinate; a 1 mm step along −P∇φ lowers φ by what the gradient predicts (first order, ±30%,
+    both evaluations anchored at θ's own equilibrium);
+    sobolev_length 0 gives no metric (Euclidean L-BFGS)."""
+    model, p, g, cloth, pts, loops = skirt_problem
+    x_keep, rest_keep = np.array(cloth.x), np.array(cloth.control.rest)
+    cage = build_cage(g)
+    opts = RecoverOptions.from_config(residual_tol=1e-8, samples=200, bending="fixed")
+    assert CoOptObjective(cloth, g, pts, loops, opts.with_(sobolev_length=0.0), cage=cage).precondition() == {}
+    obj = CoOptObjective(cloth, g, pts, loops, opts, cage=cage)
+    P = obj.precondition()["handles"]
+    theta = obj.initial_params()
+    assert P.n == len(cage.handles) and theta["handles"].shape == (2 * P.n,)
+    obj(theta)
+    obj.commit()
+    x_base = np.array(obj.x_warm)
+    v0, grads, _ = obj(theta)
+    gh = grads["handles"]
+    d = -P(gh)
+    step = 0.001 * d / np.abs(d).max()
+    obj.x_warm = x_base
+    v1 = obj({**theta, "handles": theta["handles"] + step})[0]
+    predicted = float(gh @ step)
+    assert predicted < 0 and v1 < v0
+    assert abs((v1 - v0) - predicted) < 0.3 * abs(predicted), (v1 - v0, predicted)
+    cloth.set_control(rest=rest_keep)
+    cloth.reset(x_keep)
 
 
 @pytest.fixture(scope="module")
@@ -187,6 +220,8 @@ def test_options_from_node_dict_and_config():
         RecoverOptions.from_config(length_tolerance_pct=-1)
     with pytest.raises(ValueError, match="fresh_every"):
         RecoverOptions.from_config(fresh_every=-1)
+    with pytest.raises(ValueError, match="sobolev_length"):
+        RecoverOptions.from_config(sobolev_length=-0.1)
     with pytest.raises(ValueError, match="output_settle_tol"):
         RecoverOptions.from_config(output_settle_tol=0.0)
     with pytest.raises(ValueError, match="output_drape_steps"):
@@ -281,5 +316,55 @@ def test_try_fresh_keeps_the_lower_loss_warm_start(skirt_problem):
     assert np.isfinite(v_warm) and used == (v_fresh < v_warm)
     # the kept start: the fresh equilibrium's evaluation, or the warm start as it was
     assert np.array_equal(obj.x_warm, obj.x_last if used else x_before)
+    cloth.set_control(rest=rest_keep)
+    cloth.reset(x_keep)
+
+
+def test_body_after_holds_the_body_first(skirt_problem):
+    """body_after N: the body's shape and pose stay at their scan fit for the first N iterations
+    while the pattern moves; from then on they are co-optimized."""
+    from diffavatar_core.pipeline.coopt import co_optimize
+    model, p, g, cloth, pts, loops = skirt_problem
+    x_keep, rest_keep = np.array(cloth.x), np.array(cloth.control.rest)
+    opts = RecoverOptions.from_config(residual_tol=1e-8, samples=200, iterations=2, fresh_every=0, bending="fixed")
+    moved = []
+    for body_after in (2, 1):
+        cloth.set_control(rest=rest_keep, body_vertices=model.pose(p))
+        cloth.reset(x_keep)
+        res = co_optimize(cloth, g, pts, loops, opts.with_(body_after=body_after), cage=build_cage(g),
+                          body_model=model, body_params=p)
+        assert res.iterations == 2 and np.abs(res.rest - g.rest).max() > 1e-4
+        moved.append(float(np.abs(res.body_params.shape - p.shape).max() + np.abs(res.body_params.pose - p.pose).max()))
+    assert moved[0] == 0.0 and moved[1] > 0.0, moved
+    cloth.set_control(rest=rest_keep, body_vertices=model.pose(p))
+    cloth.reset(x_keep)
+
+
+def test_a_stage_start_that_no_longer_drapes_ends_the_run_with_the_last_iterate(skirt_problem, monkeypatch):
+    """If the re-drape at a stage's start fails (fault injected: every evaluation after the first
+    fresh-drape check raises), co_optimize stops with 'invalid_start' and returns the last
+    accepted iterate with its equilibrium — no exception, nothing already optimized lost."""
+    from diffavatar_core.pipeline import coopt
+    model, p, g, cloth, pts, loops = skirt_problem
+    x_keep, rest_keep = np.array(cloth.x), np.array(cloth.control.rest)
+    broken = {"on": False}
+    call, try_fresh = coopt.CoOptObjective.__call__, coopt.CoOptObjective.try_fresh
+
+    def failing_call(self, params):
+        if broken["on"]:
+            raise ValueError("drape did not converge: injected")
+        return call(self, params)
+
+    def breaking_try_fresh(self, params):
+        used = try_fresh(self, params)
+        broken["on"] = True
+        return used
+    monkeypatch.setattr(coopt.CoOptObjective, "__call__", failing_call)
+    monkeypatch.setattr(coopt.CoOptObjective, "try_fresh", breaking_try_fresh)
+    opts = RecoverOptions.from_config(residual_tol=1e-8, samples=200, iterations=4, fresh_every=2, bending="fixed")
+    res = coopt.co_optimize(cloth, g, pts, loops, opts, cage=build_cage(g))
+    assert res.stopped == "invalid_start" and res.iterations == 2 and len(res.history) == 3
+    assert np.abs(res.rest - g.rest).max() > 1e-4
+    assert cloth.solver.residual(cloth.x, np.array([0, -9.81, 0.0])) <= 1e-6
     cloth.set_control(rest=rest_keep)
     cloth.reset(x_keep)
