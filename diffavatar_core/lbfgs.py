@@ -52,7 +52,7 @@ def minimize_lbfgs(evaluate: Callable[[dict], tuple], params: dict, step: dict, 
     failed trial, after on_revert() (which undoes the on_accept() of that trial).
 
     precondition: {group: P} with P(v) a symmetric positive definite linear operator on the group's
-    flattened vector (in step units), largest eigenvalue ≤ 1: the initial inverse Hessian H₀ of the
+    flattened vector (in step units; mean eigenvalue ~1): the initial inverse Hessian H₀ of the
     two-loop recursion (identity for the other groups), i.e. the metric of the first, steepest-
     descent step and of every restart (e.g. pattern.sobolev.SobolevMetric for the handles)."""
     names = sorted(params)

@@ -55,7 +55,7 @@ def _dense_P(metric):
 
 
 def test_metric_spectrum_on_a_template_cage():
-    """On the t-shirt's cage: P is symmetric positive definite with largest eigenvalue 1; a zig-zag
+    """On the t-shirt's cage: P is symmetric positive definite with mean eigenvalue 1; a zig-zag
     of the handles (alternate handles ±) keeps a far smaller share than a uniform move of the
     panel, and a longer length damps it more."""
     g = make_template("tshirt", edge_length=0.04)
@@ -66,7 +66,7 @@ def test_metric_spectrum_on_a_template_cage():
         P = _dense_P(M)
         np.testing.assert_allclose(P, P.T, atol=1e-10 * np.abs(P).max())
         ev = np.linalg.eigvalsh(0.5 * (P + P.T))
-        assert ev.min() > 0 and ev.max() == pytest.approx(1.0, rel=1e-8)
+        assert ev.min() > 0 and ev.mean() == pytest.approx(1.0, rel=1e-8) and ev.max() > 2
         front = np.flatnonzero(cage.handle_panel == 0)
         move = np.zeros((M.n, 2))
         move[front, 1] = 1.0                      # the front panel translated in y
@@ -79,7 +79,8 @@ def test_metric_spectrum_on_a_template_cage():
 
 def test_vertex_parametrization_and_sparse_path_agree_with_dense():
     """W = identity (every pattern vertex a parameter): the sparse factorization used above
-    DENSE_MAX gives the same operator as the dense one."""
+    DENSE_MAX gives the same operator as the dense one, up to its normalisation (tr(G⁻¹) by
+    Hutchinson's estimate: within 10%)."""
     X, F = _grid(9, 6, jitter=0.01)
     dense = SobolevMetric(X, F, None, 0.2)
     sparse = SobolevMetric.__new__(SobolevMetric)
@@ -89,7 +90,10 @@ def test_vertex_parametrization_and_sparse_path_agree_with_dense():
     finally:
         SobolevMetric.DENSE_MAX = old
     v = np.random.default_rng(1).normal(size=2 * len(X))
-    np.testing.assert_allclose(sparse(v), dense(v), rtol=1e-8)
+    a, b = sparse(v), dense(v)
+    ratio = (a @ b) / (b @ b)
+    np.testing.assert_allclose(a, ratio * b, rtol=1e-8)
+    assert abs(ratio - 1) < 0.1, ratio
     with pytest.raises(ValueError, match="expected"):
         dense(v[:-1])
     with pytest.raises(ValueError, match="length"):
