@@ -28,8 +28,9 @@ def pattern_laplacian(rest, faces) -> tuple[sp.csr_matrix, np.ndarray]:
         raise ValueError(f"faces: expected (F, 3) indices into {len(X)} vertices, got shape {F.shape}")
     e1, e2 = X[F[:, 1]] - X[F[:, 0]], X[F[:, 2]] - X[F[:, 0]]
     area2 = np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
-    if np.any(area2 <= 1e-14 * max(float(np.ptp(X)) ** 2, 1e-300)):
-        raise ValueError(f"rest: {int(np.sum(area2 <= 0))} degenerate triangle(s); no Laplacian")
+    degenerate = area2 <= 1e-14 * max(float(np.ptp(X)) ** 2, 1e-300)
+    if np.any(degenerate):
+        raise ValueError(f"rest: {int(degenerate.sum())} degenerate triangle(s); no Laplacian")
     rows, cols, vals = [], [], []
     for k in range(3):
         i, j, o = F[:, k], F[:, (k + 1) % 3], F[:, (k + 2) % 3]

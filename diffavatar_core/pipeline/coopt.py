@@ -241,6 +241,11 @@ class CoOptObjective:
         self.x_warm = self.x_prev
 
 
+class _EvaluationFailed(ValueError):
+    """φ could not be evaluated at a point (no equilibrium, an invalid iterate): a failed trial for
+    the optimizer; at a stage's start it ends the run (co_optimize: stopped 'invalid_start')."""
+
+
 def co_optimize(cloth, garment, scan_points, scan_loops: dict, opts: RecoverOptions, cage=None,
                 body_model=None, body_params: BodyParams | None = None, on_iteration=None,
                 cancelled=lambda: False, cancel=None, body_points=None) -> CoOptResult:
@@ -296,7 +301,10 @@ def co_optimize(cloth, garment, scan_points, scan_loops: dict, opts: RecoverOpti
             lr = {g: v for g, v in obj.step_sizes().items() if g not in held}
 
             def evaluate(p, held=held):
-                value, grads, terms = obj({**p, **held})
+                try:
+                    value, grads, terms = obj({**p, **held})
+                except (ValueError, FloatingPointError) as exc:   # still a ValueError for the optimizer
+                    raise _EvaluationFailed(str(exc)) from exc
                 return value, {g: v for g, v in grads.items() if g not in held}, terms
 
             def report(h, offset=it):
@@ -308,7 +316,7 @@ def co_optimize(cloth, garment, scan_points, scan_loops: dict, opts: RecoverOpti
                     on_iteration(h)
             try:
                 res = run_stage(evaluate, free, lr, n, report)
-            except (ValueError, FloatingPointError):
+            except _EvaluationFailed:
                 # the stage's start (the last accepted iterate) no longer re-drapes from its own
                 # equilibrium: keep that iterate and its committed drape rather than lose the run
                 stopped = "invalid_start"

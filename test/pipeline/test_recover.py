@@ -343,7 +343,8 @@ def test_body_after_holds_the_body_first(skirt_problem):
 def test_a_stage_start_that_no_longer_drapes_ends_the_run_with_the_last_iterate(skirt_problem, monkeypatch):
     """If the re-drape at a stage's start fails (fault injected: every evaluation after the first
     fresh-drape check raises), co_optimize stops with 'invalid_start' and returns the last
-    accepted iterate with its equilibrium — no exception, nothing already optimized lost."""
+    accepted iterate with its equilibrium — no exception, nothing already optimized lost. A
+    configuration error (a zero step size) still raises."""
     from diffavatar_core.pipeline import coopt
     model, p, g, cloth, pts, loops = skirt_problem
     x_keep, rest_keep = np.array(cloth.x), np.array(cloth.control.rest)
@@ -366,5 +367,9 @@ def test_a_stage_start_that_no_longer_drapes_ends_the_run_with_the_last_iterate(
     assert res.stopped == "invalid_start" and res.iterations == 2 and len(res.history) == 3
     assert np.abs(res.rest - g.rest).max() > 1e-4
     assert cloth.solver.residual(cloth.x, np.array([0, -9.81, 0.0])) <= 1e-6
+    # a configuration error is not a failed drape: it still raises
+    from diffavatar_core.pipeline.options import StepSizes
+    with pytest.raises(ValueError, match="step"):
+        coopt.co_optimize(cloth, g, pts, loops, opts.with_(step_sizes=StepSizes(handles=0.0)), cage=build_cage(g))
     cloth.set_control(rest=rest_keep)
     cloth.reset(x_keep)
