@@ -36,7 +36,7 @@ def minimize_lbfgs(evaluate: Callable[[dict], tuple], params: dict, step: dict, 
                    c1: float = 1e-4, max_backtracks: int = 6, on_iteration: Callable | None = None,
                    cancelled: Callable[[], bool] = lambda: False, on_accept: Callable | None = None,
                    reevaluate: bool = False, precondition: dict | None = None,
-                   on_revert: Callable | None = None) -> OptimizeResult:
+                   on_revert: Callable | None = None, reevaluate_tol: float = 0.0) -> OptimizeResult:
     """Minimizes evaluate(params) -> (value, grads, terms). step: per-group scale (the unit move;
     e.g. m for handles). A step is at most `max_step` units in any component. Stops after
     `max_iterations` accepted steps, when `patience` successive steps improved the loss by less
@@ -44,12 +44,13 @@ def minimize_lbfgs(evaluate: Callable[[dict], tuple], params: dict, step: dict, 
     reset model ('step_size'), or when `cancelled()`. The history holds one entry per accepted
     step (iteration, value, terms, lr = the step length taken, in group units × scale).
 
-    on_accept() is called when a point becomes the current iterate. reevaluate: the objective
-    depends on its evaluation history (the recovery's equilibria are anchored to the current
-    iterate's drape), so an accepted point is evaluated once more after on_accept() and the line
-    search compares trials with that value — the same anchor on both sides of the comparison. A
-    trial whose re-evaluation fails (its drape does not re-drape from itself) is rejected like a
-    failed trial, after on_revert() (which undoes the on_accept() of that trial).
+    on_accept() is called when a point becomes the current iterate. reevaluate (True or a count
+    N): the objective depends on its evaluation history (the recovery's equilibria are anchored to
+    the current iterate's drape), so an accepted point is evaluated again after on_accept() — up to
+    N times, each from the previous one's drape, until φ changes by no more than reevaluate_tol
+    (relative) — and the line search compares trials with the last value: the same anchor on both
+    sides of the comparison. A trial whose re-evaluation fails (its drape does not re-drape from
+    itself) is rejected like a failed trial, after one on_revert() per on_accept() of that trial.
 
     precondition: {group: P} with P(v) a symmetric positive definite linear operator on the group's
     flattened vector (in step units; mean eigenvalue ~1): the initial inverse Hessian H₀ of the
@@ -124,14 +125,21 @@ def minimize_lbfgs(evaluate: Callable[[dict], tuple], params: dict, step: dict, 
             except (ValueError, FloatingPointError):
                 ok = False
             if ok and reevaluate:   # the trial becomes the anchor; it must re-evaluate from itself
-                if on_accept:
-                    on_accept()
-                try:
-                    v_re, g_re, t_re = f(u + alpha * d)
-                except (ValueError, FloatingPointError):
-                    ok = False
-                    if on_revert:
-                        on_revert()
+                v_re, g_re, t_re, commits = v_new, g_new, t_new, 0
+                for _ in range(int(reevaluate)):
+                    if on_accept:
+                        on_accept()
+                    commits += 1
+                    try:
+                        v_prev, (v_re, g_re, t_re) = v_re, f(u + alpha * d)
+                    except (ValueError, FloatingPointError):
+                        ok = False
+                        for _ in range(commits):
+                            if on_revert:
+                                on_revert()
+                        break
+                    if abs(v_re - v_prev) <= reevaluate_tol * abs(v_prev):
+                        break
             if ok:
                 break
             rejected += 1

@@ -85,7 +85,8 @@ class CoOptObjective:
         self.use_body = bool(opts.optimize_body and body_model is not None and body_params is not None)
         self.model, self.p0 = body_model, (body_params.copy() if body_params is not None else None)
         self.x_warm = np.array(cloth.x)   # start and anchor of every re-drape: the current iterate's drape
-        self.x_last = self.x_prev = self.x_warm
+        self.x_last = self.x_warm
+        self._undo = []          # warm starts before the last commits (revert)
         self.last_fresh = None   # (φ warm, φ fresh) of the last try_fresh
         bp = np.zeros((0, 3)) if body_points is None else np.asarray(body_points, np.float64).reshape(-1, 3)
         if len(bp) > opts.samples:   # a fixed, reproducible subset
@@ -234,11 +235,13 @@ class CoOptObjective:
         """The last evaluated point became the optimizer's current iterate: later re-drapes start
         from (and are anchored to) its drape. Rejected trials never become warm starts — one may
         have found another equilibrium (a skirt slid off the hips)."""
-        self.x_prev, self.x_warm = self.x_warm, self.x_last
+        self._undo = (self._undo + [self.x_warm])[-8:]
+        self.x_warm = self.x_last
 
     def revert(self) -> None:
-        """Undoes the last commit() (its iterate was not accepted after all)."""
-        self.x_warm = self.x_prev
+        """Undoes the last commit() (its iterate was not accepted after all); the last 8 are kept."""
+        if self._undo:
+            self.x_warm = self._undo.pop()
 
 
 class _EvaluationFailed(ValueError):
@@ -281,7 +284,8 @@ def co_optimize(cloth, garment, scan_points, scan_loops: dict, opts: RecoverOpti
             if opts.optimizer == "lbfgs":
                 return minimize_lbfgs(evaluate, free, lr, max_iterations=n, patience=opts.patience,
                                       on_iteration=report, cancelled=cancelled, on_accept=obj.commit,
-                                      reevaluate=True, precondition=pre, on_revert=obj.revert)
+                                      reevaluate=opts.reevaluations, reevaluate_tol=opts.reevaluate_tol,
+                                      precondition=pre, on_revert=obj.revert)
 
             def accepted(h):
                 obj.commit()

@@ -61,6 +61,8 @@ class RecoverOptions:
     length_tolerance_min: float = 0.01
     patience: int = 5
     sobolev_length: float = 0.3
+    reevaluations: int = 1
+    reevaluate_tol: float = 0.01
     # per run
     garment_type: str | None = None
     template: str | None = None          # a template file (OBJ with UVs / GarmentCode JSON)
@@ -74,7 +76,7 @@ class RecoverOptions:
         def bad(name, why):
             raise ValueError(f"recover options: {name} {why}, got {getattr(self, name)!r}")
         for name in ("iterations", "samples", "drape_steps", "drape_iterations", "patience", "bending_after",
-                     "body_after", "output_drape_steps", "fresh_every"):
+                     "body_after", "output_drape_steps", "fresh_every", "reevaluations"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < 0:
                 bad(name, "must be a non-negative integer")
@@ -85,7 +87,7 @@ class RecoverOptions:
                 bad(name, "must be a positive number")
         if self.length_measure not in ("raw", "resampled"):
             bad("length_measure", "must be raw or resampled")
-        for name in ("length_tolerance_pct", "length_tolerance_min", "sobolev_length"):
+        for name in ("length_tolerance_pct", "length_tolerance_min", "sobolev_length", "reevaluate_tol"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
                 bad(name, "must be a number >= 0")

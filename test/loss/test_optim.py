@@ -174,3 +174,37 @@ def test_lbfgs_rejects_a_trial_that_does_not_reevaluate_from_itself():
     assert res.params["a"][0] <= 0.5 and state["anchor"][0] <= 0.5
     values = [h["value"] for h in res.history]
     assert res.value < 0.3 * values[0]
+
+
+def test_lbfgs_reevaluates_until_the_value_settles_and_reverts_every_commit():
+    """reevaluate N with reevaluate_tol: an accepted trial is re-evaluated from its own anchor until
+    φ changes by ≤ tol (here a drift of 20%·2⁻ᵏ on the k-th evaluation in a row: 8%, 4.5%, 2.4% →
+    3 re-evaluations at tol 3%), at most N times; a failure at the k-th re-evaluation reverts all k
+    commits of that trial (the ill-conditioned chain quadratic: no step is ever zero)."""
+    A, x_star, evaluate = _chain_quadratic()
+
+    def run(n, tol, fail_at=None):
+        st = {"key": None, "k": 0, "ks": [], "reverts": 0}
+
+        def drifting(p):
+            key = p["h"].tobytes()
+            st["k"] = st["k"] + 1 if key == st["key"] else 0
+            st["key"] = key
+            if fail_at is not None and st["k"] == fail_at and p["h"][0] > 0.5 * x_star[0]:
+                raise ValueError("no equilibrium from its own drape")
+            st["ks"].append(st["k"])
+            v, g, t = evaluate(p)
+            return v - 0.2 * abs(v) * 0.5 ** st["k"], g, t   # re-evaluations come out higher, as in the recovery
+
+        def revert():
+            st["reverts"] += 1
+        res = minimize_lbfgs(drifting, {"h": np.zeros(len(A))}, {"h": 1.0}, max_iterations=8,
+                             on_accept=lambda: None, on_revert=revert, reevaluate=n, reevaluate_tol=tol)
+        return res, st
+
+    res, st = run(5, 0.03)
+    assert max(st["ks"]) == 3 and st["reverts"] == 0 and res.iterations == 8
+    res, st = run(2, 0.03)
+    assert max(st["ks"]) == 2
+    res, st = run(3, 0.0, fail_at=2)
+    assert st["reverts"] > 0 and st["reverts"] % 2 == 0

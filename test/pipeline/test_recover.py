@@ -222,6 +222,12 @@ def test_options_from_node_dict_and_config():
         RecoverOptions.from_config(fresh_every=-1)
     with pytest.raises(ValueError, match="sobolev_length"):
         RecoverOptions.from_config(sobolev_length=-0.1)
+    with pytest.raises(ValueError, match="reevaluations"):
+        RecoverOptions.from_config(reevaluations=-1)
+    with pytest.raises(ValueError, match="reevaluate_tol"):
+        RecoverOptions.from_config(reevaluate_tol=float("nan"))
+    with pytest.raises(ValueError, match="body_after"):
+        RecoverOptions.from_config(body_after=1.5)
     with pytest.raises(ValueError, match="output_settle_tol"):
         RecoverOptions.from_config(output_settle_tol=0.0)
     with pytest.raises(ValueError, match="output_drape_steps"):
