@@ -235,11 +235,12 @@ class CoOptObjective:
         """The last evaluated point became the optimizer's current iterate: later re-drapes start
         from (and are anchored to) its drape. Rejected trials never become warm starts — one may
         have found another equilibrium (a skirt slid off the hips)."""
-        self._undo = (self._undo + [self.x_warm])[-8:]
+        self._undo = (self._undo + [self.x_warm])[-(self.opts.reevaluations + 2):]
         self.x_warm = self.x_last
 
     def revert(self) -> None:
-        """Undoes the last commit() (its iterate was not accepted after all); the last 8 are kept."""
+        """Undoes the last commit() (its iterate was not accepted after all). The warm starts of
+        the last reevaluations + 2 commits are kept: every commit of one line-search trial."""
         if self._undo:
             self.x_warm = self._undo.pop()
 

@@ -379,3 +379,19 @@ def test_a_stage_start_that_no_longer_drapes_ends_the_run_with_the_last_iterate(
         coopt.co_optimize(cloth, g, pts, loops, opts.with_(step_sizes=StepSizes(handles=0.0)), cage=build_cage(g))
     cloth.set_control(rest=rest_keep)
     cloth.reset(x_keep)
+
+
+def test_revert_undoes_every_commit_of_a_trial(skirt_problem):
+    """With reevaluations N a line-search trial commits up to N + 1 warm starts; revert() undoes
+    them one by one back to the warm start before the trial."""
+    model, p, g, cloth, pts, loops = skirt_problem
+    obj = CoOptObjective(cloth, g, pts, loops, RecoverOptions.from_config(samples=200, reevaluations=3),
+                         cage=build_cage(g))
+    x0 = np.array(obj.x_warm)
+    for k in range(4):
+        obj.x_last = x0 + 0.001 * (k + 1)
+        obj.commit()
+    assert np.allclose(obj.x_warm, x0 + 0.004)
+    for k in (3, 2, 1, 0):
+        obj.revert()
+        assert np.allclose(obj.x_warm, x0 + 0.001 * k)
