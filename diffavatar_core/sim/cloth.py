@@ -318,10 +318,15 @@ class Cloth:
         return SettleResult(settled, steps, moved, w * dt, pen, gap, residual, time.perf_counter() - t0, message)
 
     def refine(self, keep_anchor: bool = True, keep_contacts: bool = False, residual_tol: float = 1e-5, refine_iterations: int = 200,
-               anchor_stiffness: float = 1.0, progress=None, cancel=None) -> tuple[int, float]:
+               anchor_stiffness: float = 1.0, progress=None, cancel=None, anchor=None) -> tuple[int, float]:
         """Newton refinement of the current state to equilibrium with the last drape's simulation
         parameters; keep_anchor reuses the anchors of the last refinement and keep_contacts its
-        contact set (what the equilibrium adjoint differentiates). Returns (iterations, residual)."""
+        contact set (what the equilibrium adjoint differentiates); anchor (V,3) m: new anchor
+        positions instead (springs of stiffness anchor_stiffness·m, 1/s², pulling toward a target
+        shape). Returns (iterations, residual)."""
+        if anchor is not None:
+            self.solver.set_anchor(_validate.points("anchor", anchor))
+            keep_anchor = True
         d = _core.DrapeParams()
         d.residual_tol = float(residual_tol)
         d.refine_iterations = int(refine_iterations)

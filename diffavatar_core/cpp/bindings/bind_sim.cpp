@@ -170,6 +170,8 @@ void bind_sim(py::module_& m) {
            },
            py::arg("state"), py::arg("params"), py::arg("drape_params"), py::arg("keep_anchor") = false,
            py::arg("keep_contacts") = false, py::arg("progress") = py::none(), py::arg("cancel") = nullptr)
+      .def("set_anchor", &XpbdSolver::set_anchor, py::arg("anchor"))
+      .def_property_readonly("anchor", &XpbdSolver::anchor)
       .def("residual", &XpbdSolver::residual, py::arg("x"), py::arg("gravity"))
       .def("max_penetration", &XpbdSolver::max_penetration, py::arg("x"))
       .def_property_readonly("num_contacts", [](const XpbdSolver& s) { return s.contacts().size(); })

@@ -280,6 +280,12 @@ double XpbdSolver::residual(const RowMatX3d& x, const Vec3& gravity) const {
   return worst / ref;
 }
 
+void XpbdSolver::set_anchor(const RowMatX3d& a) {
+  if (a.rows() != model_.num_vertices) throw std::invalid_argument("anchor: must be #V×3");
+  if (!a.allFinite()) throw std::invalid_argument("anchor: non-finite position");
+  anchor_ = a;
+}
+
 int XpbdSolver::refine(ClothState& s, const SimParams& p, const DrapeParams& d, RunControl& rc, double* res_out,
                        bool keep_anchor, bool keep_contacts) {
   if (!keep_anchor || anchor_.rows() != model_.num_vertices) anchor_ = s.x;

@@ -99,6 +99,9 @@ class XpbdSolver {
   int refine(ClothState& s, const SimParams& p, const DrapeParams& d, RunControl& rc, double* residual,
              bool keep_anchor = false, bool keep_contacts = false);
   const RowMatX3d& anchor() const { return anchor_; }
+  /// Sets the anchors a (#V×3, m) that the next refine(keep_anchor = true) ties the cloth to —
+  /// e.g. a target shape for a guided equilibrium (pipeline/guided_drape.py).
+  void set_anchor(const RowMatX3d& a);
   double anchor_stiffness() const { return anchor_k_; }
   EnergyContext energy_context(const Vec3& gravity) const;
   /// Force residual max_i |∇ᵢE| / (mean m |g|) over free vertices, with current contacts.
