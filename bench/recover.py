@@ -6,7 +6,8 @@ a bending stiffness log-uniform in [1e-6, 1e-4] N·m (two orders of magnitude), 
 random shape → sew + drape → scan-like mesh (subdivided, 2 mm noise, holes, floating
 fragments, cm). Recovery starts from the unperturbed template and the default material.
 Variants: full; no_cage (every pattern vertex optimized); no_seam (α = 0); no_curvature (β = 0);
-euclidean (L-BFGS without the H¹ metric on the pattern, sobolev_length 0: the reference run).
+euclidean (L-BFGS without the H¹ metric on the pattern, sobolev_length 0: a reference run);
+unguided (no scan-guided drapes, guided_stiffness 0: a reference run).
 
 Run: `.venv/bin/python bench/recover.py [--cases N] [--iterations N] [--variants full,no_cage]
 [--output-edge 0.008] [--first-case K]`.
@@ -27,7 +28,8 @@ from diffavatar_core.pipeline.options import Weights
 from diffavatar_core.pipeline.synthetic import make_case
 
 VARIANTS = ("full", "no_cage", "no_seam", "no_curvature")
-EXTRA_VARIANTS = ("euclidean",)   # not an ablation of the paper: the L-BFGS metric before the H¹ one
+EXTRA_VARIANTS = ("euclidean", "unguided")   # not ablations of the paper: the reference runs of the L-BFGS metric
+                                            # before the H¹ one, and of the recovery without scan-guided drapes
 
 
 def corner_edge_lengths(g) -> list:
@@ -61,6 +63,8 @@ def options_for(variant, iterations, output_edge=0.0):
         return o.with_(weights=Weights(**{**o.weights.__dict__, "curvature": 0.0}))
     if variant == "euclidean":
         return o.with_(sobolev_length=0.0)
+    if variant == "unguided":
+        return o.with_(guided_stiffness=0.0)
     if variant != "full":
         raise ValueError(f"unknown variant {variant!r}: one of {VARIANTS + EXTRA_VARIANTS}")
     return o
@@ -85,6 +89,7 @@ def run_case(case, variant, iterations, output_edge=0.0):
         "cpu_s": time.process_time() - c0,   # all threads of this process: comparable under load
         "warnings": [w for w in r.warnings if "fragment" not in w],
         "iterations": r.iterations, "stopped": m["stopped"],
+        "fresh_drapes_kept": m.get("fresh_drapes_kept"), "guided_drapes_kept": m.get("guided_drapes_kept"),
         "output_drape": m.get("output_drape"),
     }
 

@@ -4,7 +4,8 @@
 'without control cage' ablation —, log10 bending stiffness (one per garment or per panel), body
 shape ν and pose ψ}. Each evaluation re-drapes from the previous equilibrium (Newton from the
 warm start; a full XPBD + Newton drape only if that fails; every `fresh_every` iterations also a
-drape from the template layout, kept as the warm start when its φ is lower), evaluates
+drape from the template layout and a scan-guided drape (guided_drape.py), each kept as the warm
+start when its φ is lower), evaluates
     φ = ρ L_boundary + σ L_interior + α L_seam(x̄) + β L_curvature(x̄)
         + δ L_body(ν, ψ) + γ |(ν, ψ) − (ν, ψ)_fit|²,
 (L_body: the scan's visible body points to the posed body surface, full scans only — without it
@@ -28,6 +29,7 @@ from ..lbfgs import minimize_lbfgs
 from ..optim import minimize
 from ..pattern.regularizers import CurvatureRegularizer, SeamLengthRegularizer
 from ..pattern.sobolev import SobolevMetric
+from .guided_drape import guided_equilibrium
 from .options import RecoverOptions
 
 
@@ -43,6 +45,7 @@ class CoOptResult:
     rejected: int
     stopped: str
     fresh_kept: int = 0          # fresh drapes (fresh_every) that became the warm start
+    guided_kept: int = 0         # scan-guided drapes (guided_stiffness) that became the warm start
 
 
 def seam_mismatch_pct(g, rest) -> float:
@@ -61,13 +64,17 @@ class CoOptObjective:
     scan_loops: opening name → (K, 3) m (matched by name to garment.boundaries); cage: a
     pattern.ControlCage (parametrization 'cage', else every rest vertex is a parameter);
     body_model/body_params: ν, ψ are parameters when given and opts.optimize_body;
-    body_points (N, 3) m: the scan's body-labelled points (full scans; None or empty: no L_body).
+    body_points (N, 3) m: the scan's body-labelled points (full scans; None or empty: no L_body);
+    scan_mesh (V (N, 3) m, F (M, 3)): the scan's garment surface, for scan-guided drapes
+    (try_guided; None: none).
     Parameter groups: handles ((H·2,) m), log_bend ((1,) or (G,) log10 N·m), shape ((K,)),
     pose ((J·3,) rad)."""
 
     def __init__(self, cloth, garment, scan_points, scan_loops: dict, opts: RecoverOptions, cage=None,
-                 body_model=None, body_params: BodyParams | None = None, cancel=None, body_points=None):
+                 body_model=None, body_params: BodyParams | None = None, cancel=None, body_points=None,
+                 scan_mesh=None):
         self.cloth, self.g, self.opts, self.cage, self.cancel = cloth, garment, opts, cage, cancel
+        self.scan_mesh = scan_mesh
         self.faces = np.asarray(garment.faces, np.int32)
         self.scan_points = np.asarray(scan_points, np.float64)
         self.scan_loops = scan_loops
@@ -88,6 +95,7 @@ class CoOptObjective:
         self.x_last = self.x_warm
         self._undo = []          # warm starts before the last commits (revert)
         self.last_fresh = None   # (φ warm, φ fresh) of the last try_fresh
+        self.last_guided = None  # (φ warm, φ guided) of the last try_guided
         bp = np.zeros((0, 3)) if body_points is None else np.asarray(body_points, np.float64).reshape(-1, 3)
         if len(bp) > opts.samples:   # a fixed, reproducible subset
             bp = bp[np.random.default_rng(0).choice(len(bp), opts.samples, replace=False)]
@@ -231,6 +239,31 @@ class CoOptObjective:
         self.x_warm = x_keep   # the optimizer's next evaluation re-drapes from it
         return False
 
+    def try_guided(self, params) -> bool:
+        """As try_fresh, with a scan-guided drape (guided_drape.py: pulled toward the scan with
+        springs of opts.guided_stiffness, then released) from the current warm start's drape as
+        the candidate: a fold state chosen by the scan. False (nothing changed) without a scan
+        mesh or with guided_stiffness 0."""
+        if self.scan_mesh is None or not self.opts.guided_stiffness:
+            return False
+        x_keep = np.array(self.x_warm)
+        v_warm = self._value_or_inf(params)
+        try:
+            if not np.isfinite(v_warm):
+                raise ValueError("no warm drape to guide")
+            guided_equilibrium(self.cloth, *self.scan_mesh, self.opts.guided_stiffness, self.opts.guided_capture,
+                               residual_tol=self.opts.residual_tol, cancel=self.cancel)
+            self.x_warm = np.array(self.cloth.x)
+            v_guided = self._value_or_inf(params)
+        except ValueError:
+            v_guided = np.inf
+        self.last_guided = (v_warm, v_guided)
+        if v_guided < v_warm:
+            self.commit()
+            return True
+        self.x_warm = x_keep
+        return False
+
     def commit(self) -> None:
         """The last evaluated point became the optimizer's current iterate: later re-drapes start
         from (and are anchored to) its drape. Rejected trials never become warm starts — one may
@@ -252,24 +285,26 @@ class _EvaluationFailed(ValueError):
 
 def co_optimize(cloth, garment, scan_points, scan_loops: dict, opts: RecoverOptions, cage=None,
                 body_model=None, body_params: BodyParams | None = None, on_iteration=None,
-                cancelled=lambda: False, cancel=None, body_points=None) -> CoOptResult:
+                cancelled=lambda: False, cancel=None, body_points=None, scan_mesh=None) -> CoOptResult:
     """Minimizes CoOptObjective (same arguments) from the template's parameters (opts.optimizer,
-    opts.iterations accepted steps at most); the last iterate is re-draped and returned."""
+    opts.iterations accepted steps at most); the last iterate is re-draped — and, with a scan
+    mesh and opts.guided_stiffness, also guided toward the scan, the lower-φ equilibrium kept —
+    and returned."""
     obj = CoOptObjective(cloth, garment, scan_points, scan_loops, opts, cage, body_model, body_params, cancel,
-                         body_points)
+                         body_points, scan_mesh)
     params = obj.initial_params()
     if opts.iterations == 0:
         value, _, terms = obj(params)
         history = [{"iteration": 0, "value": value, "terms": terms, "lr": obj.step_sizes()}]
         if on_iteration:
             on_iteration(history[-1])
-        best, it, rej, stopped, kept = params, 0, 0, "max_iterations", 0
+        best, it, rej, stopped, kept, gkept = params, 0, 0, "max_iterations", 0, 0
     else:
         # stages: the optimization restarts (L-BFGS memory cleared) at every cut —
         # bending_after / body_after: the bending stiffness / the body held until then (a skirt cut
         # too large can otherwise hide its extra cloth in softer folds; a body can absorb a misfit
-        # of the pattern); fresh_every N: every N iterations the lower-φ of the warm and a fresh
-        # drape of the current parameters becomes the warm start
+        # of the pattern); fresh_every N: every N iterations the lower-φ of the warm, a fresh and
+        # a scan-guided drape of the current parameters becomes the warm start
         n_it, fresh_every = opts.iterations, opts.fresh_every
         bend_after = opts.bending_after if "log_bend" in params else 0
         body_after = opts.body_after if obj.use_body else 0
@@ -278,7 +313,7 @@ def co_optimize(cloth, garment, scan_points, scan_loops: dict, opts: RecoverOpti
             cuts |= set(range(fresh_every, n_it, fresh_every))
         cuts = sorted(cuts)
         history, it, rej, stopped = [], 0, 0, "max_iterations"
-        fresh_used = []
+        fresh_used, guided_used = [], []
         pre = obj.precondition() if opts.optimizer == "lbfgs" else {}
 
         def run_stage(evaluate, free, lr, n, report):
@@ -302,6 +337,7 @@ def co_optimize(cloth, garment, scan_points, scan_loops: dict, opts: RecoverOpti
                 held.update(shape=params["shape"], pose=params["pose"])
             if fresh_every and 0 < start < n_it and start % fresh_every == 0:
                 fresh_used.append(obj.try_fresh(params))
+                guided_used.append(obj.try_guided(params))
             free = {g: v for g, v in params.items() if g not in held}
             lr = {g: v for g, v in obj.step_sizes().items() if g not in held}
 
@@ -331,7 +367,9 @@ def co_optimize(cloth, garment, scan_points, scan_loops: dict, opts: RecoverOpti
             if stopped == "cancelled":
                 break
         best = params
-        kept = int(sum(fresh_used))
+        if stopped not in ("cancelled", "invalid_start"):
+            guided_used.append(obj.try_guided(best))   # the returned drape: the fold state nearer the scan
+        kept, gkept = int(sum(fresh_used)), int(sum(guided_used))
     rest, bend, bp = obj.unpack(best)
     bv = body_model.pose(bp) if obj.use_body else None
     try:
@@ -340,4 +378,4 @@ def co_optimize(cloth, garment, scan_points, scan_loops: dict, opts: RecoverOpti
         cloth.set_control(rest=rest, bend_stiffness=bend, body_vertices=bv)
         cloth.reset(obj.x_warm)
     return CoOptResult(rest, bend, bp if obj.use_body else body_params, bv, np.array(cloth.x), history, it, rej,
-                       stopped, kept)
+                       stopped, kept, gkept)

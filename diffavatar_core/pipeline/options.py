@@ -57,6 +57,8 @@ class RecoverOptions:
     body_trim_distance: float = 0.05
     length_measure: str = "raw"
     fresh_every: int = 5
+    guided_stiffness: float = 1.0e4
+    guided_capture: float = 0.03
     length_tolerance_pct: float = 2.0
     length_tolerance_min: float = 0.01
     patience: int = 5
@@ -81,13 +83,14 @@ class RecoverOptions:
             if isinstance(v, bool) or not isinstance(v, int) or v < 0:
                 bad(name, "must be a non-negative integer")
         for name in ("edge_length", "bend_stiffness", "residual_tol", "max_seam_mismatch_pct",
-                     "body_trim_distance", "output_settle_tol"):
+                     "body_trim_distance", "output_settle_tol", "guided_capture"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
                 bad(name, "must be a positive number")
         if self.length_measure not in ("raw", "resampled"):
             bad("length_measure", "must be raw or resampled")
-        for name in ("length_tolerance_pct", "length_tolerance_min", "sobolev_length", "reevaluate_tol"):
+        for name in ("length_tolerance_pct", "length_tolerance_min", "sobolev_length", "reevaluate_tol",
+                     "guided_stiffness"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
                 bad(name, "must be a number >= 0")

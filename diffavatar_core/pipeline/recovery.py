@@ -213,7 +213,8 @@ def recover(scan, options=None, run_control=None, *, progress=None, cancel=None,
 
     co = co_optimize(cloth, g, data.interior_points, data.boundaries, opts, cage=cage, body_model=model,
                      body_params=body_params, on_iteration=on_iteration, cancelled=lambda: ctl.cancelled,
-                     cancel=ctl.token, body_points=data.vertices[body_mask] if full else None)
+                     cancel=ctl.token, body_points=data.vertices[body_mask] if full else None,
+                     scan_mesh=data.garment_mesh())
     ctl.check("optimize")
 
     body_final = co.body_vertices if co.body_vertices is not None else body_vertices
@@ -251,6 +252,7 @@ def recover(scan, options=None, run_control=None, *, progress=None, cancel=None,
         "seam_length_mismatch_max_pct": seam_mismatch_pct(g_out, rest_out),
         "pattern_area_m2": g_final.total_area(), "template_area_m2": g.total_area(),
         "stopped": co.stopped, "rejected_iterations": co.rejected, "fresh_drapes_kept": co.fresh_kept,
+        "guided_drapes_kept": co.guided_kept,
         "optimized_vertices": int(len(g.rest)), "output_vertices": int(len(rest_out)),
         "output_drape": output_drape,
     }

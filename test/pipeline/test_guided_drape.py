@@ -1,0 +1,136 @@
+"""Scan-guided drapes (pipeline/guided_drape.py): targets are closest points on the scan within
+the capture distance; guided toward itself a drape is only re-equilibrated; one guided toward
+another equilibrium's surface ends as an equilibrium nearer to it; the co-optimization keeps the
+lower-φ of the warm and the guided drape."""
+import numpy as np
+import pytest
+
+from diffavatar_core.body import BodyModel
+from diffavatar_core.metrics import surface_distances
+from diffavatar_core.pattern.cage import build_cage
+from diffavatar_core.pattern.templates import make_template
+from diffavatar_core.pipeline import RecoverOptions
+from diffavatar_core.pipeline.coopt import CoOptObjective
+from diffavatar_core.pipeline.guided_drape import guided_equilibrium, scan_targets
+from diffavatar_core.sim.cloth import Cloth
+from diffavatar_core.sim.material import ClothMaterial
+
+GRAVITY = np.array([0.0, -9.81, 0.0])
+
+
+def test_targets_are_closest_scan_points_within_the_capture_distance():
+    """On the square z = 0 (two triangles, m): a point 2 cm above it targets its projection, a
+    point 5 cm above it (farther than the 3 cm capture) and one beside the square stay put."""
+    V = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float)
+    F = np.array([[0, 1, 2], [0, 2, 3]])
+    x = np.array([[0.3, 0.4, 0.02], [0.5, 0.5, 0.05], [1.2, 0.5, 0.0]])
+    t = scan_targets(x, V, F, capture=0.03)
+    np.testing.assert_allclose(t[0], [0.3, 0.4, 0.0], atol=1e-12)
+    np.testing.assert_array_equal(t[1:], x[1:])
+
+
+@pytest.fixture(scope="module")
+def skirts():
+    """A coarse skirt draped on the default body (bending 5e-6 N·m), and the drape of the same
+    pattern with a stiffer fabric (1e-3 N·m): other folds, whose surface is the 'scan'."""
+    model = BodyModel.default()
+    p = model.zero_params()
+    body = (model.pose(p), model.faces)
+    g = make_template("skirt", landmarks=model.landmarks(p), edge_length=0.07)
+    out = []
+    for bend in (5e-6, 1e-3):
+        c = Cloth(g.rest, g.faces, g.x0, seams=g.seams, groups=g.panel[g.faces[:, 0]],
+                  materials=[ClothMaterial(bend_stiffness=bend)] * len(g.panels), body=body)
+        c.sew()
+        assert c.drape(max_steps=150, iterations=40, residual_tol=1e-8, refine_iterations=150).converged
+        out.append(c)
+    return g, out[0], np.array(out[1].x)
+
+
+def test_a_drape_guided_toward_itself_is_an_ordinary_reequilibration(skirts):
+    """Scan = the cloth's own drape: every target is the vertex itself, so the guided drape ends
+    where a plain re-anchored Newton solve from the same state does (the static-friction anchors
+    alone move a drape by millimetres: anchor drift, the same for both)."""
+    g, c, _ = skirts
+    x0 = np.array(c.x)
+    c.refine(keep_anchor=False, residual_tol=1e-8, refine_iterations=150)
+    x_plain = np.array(c.x)
+    c.reset(x0)
+    guided_equilibrium(c, x0, g.faces, stiffness=1e4, residual_tol=1e-8)
+    assert np.abs(np.array(c.x) - x_plain).max() < 1e-3
+    c.reset(x0)
+
+
+def test_a_guided_drape_is_an_equilibrium_nearer_the_scan(skirts):
+    """The soft skirt guided toward the stiff skirt's folds: after the release it is an
+    equilibrium of its own energy (force residual ≤ tol, not in the body) and its vertices are
+    nearer to that surface than before, on average."""
+    g, c, S = skirts
+    x0 = np.array(c.x)
+    d0 = surface_distances(x0, S, g.faces).mean()
+    guided_equilibrium(c, S, g.faces, stiffness=1e4, residual_tol=1e-8)
+    x1 = np.array(c.x)
+    assert c.solver.residual(x1, GRAVITY) <= 1e-8
+    assert c.solver.max_penetration(x1) <= 0.1 * c.model.thickness
+    d1 = surface_distances(x1, S, g.faces).mean()
+    assert d1 < 0.9 * d0, (d0, d1)
+    c.reset(x0)
+
+
+def test_try_guided_keeps_the_lower_loss_warm_start(skirts):
+    """CoOptObjective.try_guided: φ from the warm start and from its scan-guided drape; the lower
+    becomes the warm start. Without a scan mesh, or with guided_stiffness 0, nothing happens."""
+    g, c, S = skirts
+    x0 = np.array(c.x)
+    loops = {k: S[v] for k, v in g.boundaries.items()}
+    opts = RecoverOptions.from_config(residual_tol=1e-8, samples=200)
+    for mesh, o in ((None, opts), ((S, g.faces), opts.with_(guided_stiffness=0.0))):
+        obj = CoOptObjective(c, g, S, loops, o, cage=build_cage(g), scan_mesh=mesh)
+        assert obj.try_guided(obj.initial_params()) is False and obj.last_guided is None
+    obj = CoOptObjective(c, g, S, loops, opts, cage=build_cage(g), scan_mesh=(S, g.faces))
+    theta = obj.initial_params()
+    obj(theta)
+    obj.commit()
+    x_before = np.array(obj.x_warm)
+    used = obj.try_guided(theta)
+    v_warm, v_guided = obj.last_guided
+    assert np.isfinite(v_warm) and used == (v_guided < v_warm)
+    assert np.array_equal(obj.x_warm, obj.x_last if used else x_before)
+    # the stiff folds are partly reachable by the soft skirt: the guided drape explains them better
+    assert used, (v_warm, v_guided)
+    c.reset(x0)
+
+
+def test_co_optimize_returns_the_guided_equilibrium_of_its_parameters(skirts):
+    """With a scan mesh, co_optimize's last step is a guided drape of the final parameters (kept
+    here: the stiff folds explain the scan better); what it returns is an equilibrium of those
+    parameters, and its φ is lower than the unguided run's at the same parameters."""
+    from diffavatar_core.pipeline.coopt import co_optimize
+    g, c, S = skirts
+    x0, rest0 = np.array(c.x), np.array(c.control.rest)
+    loops = {k: S[v] for k, v in g.boundaries.items()}
+    opts = RecoverOptions.from_config(residual_tol=1e-8, samples=200, iterations=2, fresh_every=0, bending="fixed")
+    out = {}
+    for mesh in (None, (S, g.faces)):
+        c.set_control(rest=rest0)
+        c.reset(x0)
+        res = co_optimize(c, g, S, loops, opts, cage=build_cage(g), scan_mesh=mesh)
+        np.testing.assert_array_equal(res.x, np.array(c.x))
+        assert c.solver.residual(res.x, GRAVITY) <= 1e-6
+        cage = build_cage(g)
+        obj = CoOptObjective(c, g, S, loops, opts, cage=cage)
+        obj.x_warm = res.x   # φ of the returned parameters at the returned drape
+        out[mesh is None] = (res, obj({**obj.initial_params(), "handles": res.rest[cage.handles].reshape(-1)})[0])
+    # the same two iterations either way (no check before the end): only the final drape differs
+    np.testing.assert_array_equal(out[True][0].rest, out[False][0].rest)
+    assert out[True][0].guided_kept == 0 and out[False][0].guided_kept == 1
+    assert out[False][1] < out[True][1]
+    c.set_control(rest=rest0)
+    c.reset(x0)
+
+
+@pytest.mark.parametrize("field,value", [("guided_stiffness", -1.0), ("guided_capture", 0.0),
+                                         ("guided_stiffness", float("nan"))])
+def test_guided_options_are_validated(field, value):
+    with pytest.raises(ValueError, match=field):
+        RecoverOptions.from_config(**{field: value})
