@@ -150,6 +150,7 @@ def test_end_to_end_recovery_moves_toward_the_ground_truth(recovered):
     assert abs(m["pattern_area_m2"] - area_gt) < 0.6 * abs(m["template_area_m2"] - area_gt)
     assert m["seam_length_mismatch_max_pct"] <= 5.0
     assert m["fresh_drapes_kept"] in (0, 1)   # 6 iterations, fresh_every 5: one fresh drape tried
+    assert m["guided_drapes_kept"] in (0, 1, 2)   # and a guided one then and at the end
     assert m["mesh_quality_min"] > 0.05
     assert [s for s in ("preprocess", "body", "drape", "optimize", "metrics") if s in stages] == \
         ["preprocess", "body", "drape", "optimize", "metrics"]
