@@ -217,27 +217,35 @@ class CoOptObjective:
             return np.inf
         return v if np.isfinite(v) else np.inf
 
+    def _try_candidate(self, params, redrape) -> tuple[float, float, bool]:
+        """φ at `params` from the current warm start, then from the equilibrium redrape() leaves
+        the cloth in (called with the warm evaluation's drape in the cloth; it raises ValueError
+        when it finds none); the lower becomes the warm start. A failed evaluation counts as
+        φ = ∞. Returns (φ warm, φ candidate, candidate kept)."""
+        x_keep = np.array(self.x_warm)
+        v_warm = self._value_or_inf(params)
+        try:
+            redrape(v_warm)
+            self.x_warm = np.array(self.cloth.x)
+            v_cand = self._value_or_inf(params)
+        except ValueError:
+            v_cand = np.inf
+        if v_cand < v_warm:
+            self.commit()
+            return v_warm, v_cand, True
+        self.x_warm = x_keep   # the optimizer's next evaluation re-drapes from it
+        return v_warm, v_cand, False
+
     def try_fresh(self, params) -> bool:
         """φ at `params` from the current warm start and from a fresh drape (fresh_drape_at); the
         lower becomes the warm start (True: the fresh one). Warm-started drapes carry the
         template's folds along as the pattern changes; a fresh drape lets the cloth find the folds
         of the current pattern. An evaluation that fails counts as φ = ∞."""
-        x_keep = np.array(self.x_warm)
-        v_warm = self._value_or_inf(params)
         rest, bend, bp = self.unpack(params)
         bv = self.model.pose(bp) if self.use_body else None
-        try:
-            self.fresh_drape_at(rest, bend, bv)
-            self.x_warm = np.array(self.cloth.x)
-            v_fresh = self._value_or_inf(params)
-        except ValueError:
-            v_fresh = np.inf
+        v_warm, v_fresh, kept = self._try_candidate(params, lambda _: self.fresh_drape_at(rest, bend, bv))
         self.last_fresh = (v_warm, v_fresh)
-        if v_fresh < v_warm:
-            self.commit()
-            return True
-        self.x_warm = x_keep   # the optimizer's next evaluation re-drapes from it
-        return False
+        return kept
 
     def try_guided(self, params) -> bool:
         """As try_fresh, with a scan-guided drape (guided_drape.py: pulled toward the scan with
@@ -246,23 +254,15 @@ class CoOptObjective:
         mesh or with guided_stiffness 0."""
         if self.scan_mesh is None or not self.opts.guided_stiffness:
             return False
-        x_keep = np.array(self.x_warm)
-        v_warm = self._value_or_inf(params)
-        try:
+
+        def guide(v_warm):
             if not np.isfinite(v_warm):
                 raise ValueError("no warm drape to guide")
             guided_equilibrium(self.cloth, *self.scan_mesh, self.opts.guided_stiffness, self.opts.guided_capture,
                                residual_tol=self.opts.residual_tol, cancel=self.cancel)
-            self.x_warm = np.array(self.cloth.x)
-            v_guided = self._value_or_inf(params)
-        except ValueError:
-            v_guided = np.inf
+        v_warm, v_guided, kept = self._try_candidate(params, guide)
         self.last_guided = (v_warm, v_guided)
-        if v_guided < v_warm:
-            self.commit()
-            return True
-        self.x_warm = x_keep
-        return False
+        return kept
 
     def commit(self) -> None:
         """The last evaluated point became the optimizer's current iterate: later re-drapes start
