@@ -74,7 +74,9 @@ class CoOptObjective:
                  body_model=None, body_params: BodyParams | None = None, cancel=None, body_points=None,
                  scan_mesh=None):
         self.cloth, self.g, self.opts, self.cage, self.cancel = cloth, garment, opts, cage, cancel
-        self.scan_mesh = scan_mesh
+        # converted once: every guided drape queries it several times
+        self.scan_mesh = None if scan_mesh is None else (np.ascontiguousarray(scan_mesh[0], np.float64),
+                                                         np.ascontiguousarray(scan_mesh[1], np.int32))
         self.faces = np.asarray(garment.faces, np.int32)
         self.scan_points = np.asarray(scan_points, np.float64)
         self.scan_loops = scan_loops

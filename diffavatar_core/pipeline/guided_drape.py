@@ -18,7 +18,6 @@ import numpy as np
 from .. import _core
 
 GUIDE_ROUNDS = 3   # closest points re-found after each guided solve (they move with the cloth)
-ACTIVE_SET_ROUNDS = 3   # contact re-detections after the release at most
 
 
 def scan_targets(x, scan_vertices, scan_faces, capture: float) -> np.ndarray:
@@ -46,12 +45,8 @@ def guided_equilibrium(cloth, scan_vertices, scan_faces, stiffness: float, captu
     _, res = cloth.refine(keep_anchor=False, anchor_stiffness=1.0, residual_tol=residual_tol,
                           refine_iterations=refine_iterations, cancel=cancel)
     pen = float(cloth.solver.max_penetration(np.asarray(cloth.x)))
-    for _ in range(ACTIVE_SET_ROUNDS):   # a vertex pulled into the body: contacts re-detected (as Cloth.drape)
-        if not (res <= residual_tol and pen > 0.0):
-            break
-        _, res = cloth.refine(keep_anchor=True, anchor_stiffness=1.0, residual_tol=residual_tol,
-                              refine_iterations=refine_iterations, cancel=cancel)
-        pen = float(cloth.solver.max_penetration(np.asarray(cloth.x)))
+    if res <= residual_tol and pen > 0.0:   # a vertex pulled into the body: contacts re-detected
+        _, res, pen = cloth.reseat_contacts(residual_tol, refine_iterations, anchor_stiffness=1.0, cancel=cancel)
     if not res <= residual_tol:
         raise ValueError(f"the released guided drape stopped at residual {res:.3g}")
     if pen > 0.1 * cloth.model.thickness:

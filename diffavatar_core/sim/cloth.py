@@ -246,19 +246,13 @@ class Cloth:
         r = self.solver.drape(self.state, p, d, progress, cancel)
         t0 = time.perf_counter()
         converged, residual, its, pen, msg = r.converged, r.residual, r.refine_iterations, r.max_penetration, r.message
-        # Newton holds the contact set of the settled state fixed, so a vertex that was not in
-        # contact can end inside the body; re-detect the contacts there and refine again (an
-        # active-set iteration; a few rounds at most).
-        for _ in range(3 if refine and converged else 0):
-            if not pen > 0.0:
-                break
-            k, res = self.refine(keep_anchor=True, keep_contacts=False, residual_tol=residual_tol,
-                                 refine_iterations=refine_iterations, anchor_stiffness=anchor_stiffness,
-                                 progress=progress, cancel=cancel)
-            its, residual, pen = its + k, res, self.solver.max_penetration(self.x)
-            converged = res <= residual_tol
+        if refine and converged and pen > 0.0:
+            k, residual, pen = self.reseat_contacts(residual_tol, refine_iterations, anchor_stiffness,
+                                                    progress=progress, cancel=cancel)
+            its += k
+            converged = residual <= residual_tol
             if not converged:
-                msg = f"Newton refinement after re-detecting contacts stopped at residual {res:.3g}"
+                msg = f"Newton refinement after re-detecting contacts stopped at residual {residual:.3g}"
         # an equilibrium with the cloth inside the body is no drape: converged also needs the
         # deepest vertex within 10% of the collision thickness
         pen_tol = 0.1 * self.model.thickness
@@ -333,6 +327,23 @@ class Cloth:
         d.anchor_stiffness = float(anchor_stiffness)
         p = getattr(self, "params", None) or _sim_params(1 / 120, 100, (0, -9.81, 0), 4.0, 0.01, 50.0)
         return self.solver.refine(self.state, p, d, keep_anchor, keep_contacts, progress, cancel)
+
+    def reseat_contacts(self, residual_tol: float, refine_iterations: int = 200, anchor_stiffness: float = 1.0,
+                        rounds: int = 3, progress=None, cancel=None) -> tuple[int, float, float]:
+        """Newton holds the contact set of its starting state fixed, so a vertex that was not in
+        contact can end inside the body: while one is (max penetration > 0), re-detect the
+        contacts at the current state and refine again, anchors kept (an active-set iteration,
+        `rounds` at most). Returns (Newton iterations, last residual, max penetration m)."""
+        its, res = 0, float("nan")
+        pen = float(self.solver.max_penetration(self.x))
+        for _ in range(rounds):
+            if not pen > 0.0:
+                break
+            k, res = self.refine(keep_anchor=True, keep_contacts=False, residual_tol=residual_tol,
+                                 refine_iterations=refine_iterations, anchor_stiffness=anchor_stiffness,
+                                 progress=progress, cancel=cancel)
+            its, pen = its + k, float(self.solver.max_penetration(self.x))
+        return its, res, pen
 
     def reequilibrate(self, x_warm, residual_tol: float = 1e-7, refine_iterations: int = 80,
                       max_steps: int = 600, iterations: int = 100, cancel=None, fast: bool = False,
