@@ -32,12 +32,14 @@ EXTRA_VARIANTS = ("euclidean", "unguided")   # not ablations of the paper: the r
                                             # before the H¹ one, and of the recovery without scan-guided drapes
 
 
-def corner_edge_lengths(g) -> list:
-    """Per panel: lengths (m) of the boundary between consecutive corners (the pattern's edges)."""
+def corner_edge_lengths(g, corners_from=None) -> list:
+    """Per panel: lengths (m) of the boundary between consecutive corners (the pattern's edges).
+    Corners (turns > 30°) are found on corners_from's rest (same mesh as g, e.g. the template g
+    was deformed from) when given, else on g's own rest."""
     out = []
     for p in g.panels:
         P = g.rest[p.loop]
-        c = cage_handles(P, 30.0)
+        c = cage_handles((corners_from if corners_from is not None else g).rest[p.loop], 30.0)
         seg = np.linalg.norm(np.roll(P, -1, axis=0) - P, axis=1)
         cum = np.concatenate([[0], np.cumsum(seg)])
         L = [cum[c[(k + 1) % len(c)]] - cum[c[k]] if k + 1 < len(c) else cum[-1] - cum[c[k]] + cum[c[0]]
@@ -46,8 +48,12 @@ def corner_edge_lengths(g) -> list:
     return out
 
 
-def pattern_edge_error_cm(rec, gt) -> float:
-    a, b = corner_edge_lengths(rec), corner_edge_lengths(gt)
+def pattern_edge_error_cm(rec, gt, template=None) -> float:
+    """Mean |edge length − truth's| (cm) over the pattern's corner-to-corner edges. The
+    recovered pattern's corners are the template's (its mesh is the template's deformed), so a
+    corner rounded off by the optimizer is still measured; NaN when the corner counts differ."""
+    same_mesh = template is not None and len(template.rest) == len(rec.rest) and len(template.panels) == len(rec.panels)
+    a, b = corner_edge_lengths(rec, template if same_mesh else None), corner_edge_lengths(gt)
     if len(a) != len(b) or any(len(x) != len(y) for x, y in zip(a, b)):
         return float("nan")
     return 100 * float(np.mean(np.abs(np.concatenate(a) - np.concatenate(b))))
@@ -80,7 +86,7 @@ def run_case(case, variant, iterations, output_edge=0.0):
         "chamfer_ratio": m["chamfer_final_cm"] / m["chamfer_initial_cm"],
         "pattern_area_error_pct": 100 * abs(r.garment.total_area() - area_gt) / area_gt,
         "template_area_error_pct": 100 * abs(m["template_area_m2"] - area_gt) / area_gt,
-        "pattern_edge_error_cm": pattern_edge_error_cm(r.garment, case.garment),
+        "pattern_edge_error_cm": pattern_edge_error_cm(r.garment, case.garment, getattr(r, "template", None)),
         "bending_log10_error": abs(math.log10(r.material.bending_stiffness) - math.log10(case.bend_stiffness)),
         "body_vertex_error_cm": 100 * float(np.linalg.norm(r.body_vertices - case.body_vertices, axis=1).mean()),
         "mesh_quality_min": m["mesh_quality_min"], "seam_length_mismatch_max_pct": m["seam_length_mismatch_max_pct"],

@@ -270,6 +270,7 @@ def recover(scan, options=None, run_control=None, *, progress=None, cancel=None,
         metrics=metrics, iterations=co.iterations, wall_s=time.perf_counter() - t0,
         loss_history=[{"iteration": h["iteration"], "value": h["value"], "terms": h["terms"]} for h in co.history])
     result.garment = g_final
+    result.template = g_out   # the template mesh the pattern was deformed from (same vertices; its rest unchanged)
     result.body_params = co.body_params
     result.warnings = warnings
     result.scan_mesh = (data.vertices, data.faces)
