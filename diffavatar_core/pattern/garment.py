@@ -13,10 +13,14 @@ BOUNDARY_NAMES = ("hem", "neckline", "sleeve_left", "sleeve_right", "waist", "le
 class PanelInfo:
     """One panel: its name, its boundary loop (vertex indices into Garment.rest, counter-
     clockwise in the pattern plane) and its fabric grain (warp) direction, radians from the
-    pattern x axis."""
+    pattern x axis. Panels built from a PatternSpec also record where each loop vertex lies on
+    the spec's outline: loop_edge (B,) int32, the spec edge, and loop_t (B,), the arc-length
+    fraction along it (PanelSpec.edge_points); None for panels of other origins."""
     name: str
     loop: np.ndarray          # (B,) int32
     grain: float = np.pi / 2  # rad
+    loop_edge: np.ndarray | None = None
+    loop_t: np.ndarray | None = None
 
 
 @dataclass

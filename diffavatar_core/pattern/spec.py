@@ -179,10 +179,12 @@ def build_garment(spec: PatternSpec, edge_length: float = 0.012, gap: float = 0.
     xcursor = 0.0
     for i, p in enumerate(spec.panels):
         K = len(p.vertices)
-        loop_pts, loop_edge = [], []
+        loop_pts, loop_edge, loop_t = [], [], []
         for k in range(K):
-            pts = p.edge_points(k, fractions[kid[(i, k)]])
-            loop_pts.append(pts[:-1])
+            t = np.asarray(fractions[kid[(i, k)]], float)
+            loop_pts.append(p.edge_points(k, t)[:-1])
+            loop_edge.append(np.full(len(t) - 1, k, np.int32))
+            loop_t.append(t[:-1])
         B = np.vstack(loop_pts)
         if polygon_area(B) <= 0:
             raise ValueError(f"panel {p.name!r}: vertices must be counter-clockwise")
@@ -200,7 +202,8 @@ def build_garment(spec: PatternSpec, edge_length: float = 0.012, gap: float = 0.
         faces.append(F + offset)
         x0.append(p.placement(X))
         panel.append(np.full(len(X), i, np.int32))
-        infos.append(PanelInfo(p.name, offset + np.arange(len(B)), p.grain))
+        infos.append(PanelInfo(p.name, offset + np.arange(len(B)), p.grain, np.concatenate(loop_edge),
+                               np.concatenate(loop_t)))
         offset += len(X)
     seams = []
     for s in spec.seams:

@@ -487,25 +487,47 @@ def _polo_spec(lm: BodyLandmarks, m: TopMeasurements, collar_height: float = 0.0
     return spec
 
 
+# the measurements a recovery fits first (pipeline/measurement_fit.py), per built-in template
+FIT_MEASUREMENTS = {"tshirt": ("length", "ease", "sleeve_length", "bicep_width"),
+                    "polo": ("length", "ease", "sleeve_length", "bicep_width"),
+                    "longsleeve": ("length", "ease", "sleeve_length", "bicep_width"),
+                    "dress": ("length", "ease", "hem_flare", "sleeve_length"),
+                    "skirt": ("length", "waist_ease", "hem_width"),
+                    "pants": ("waist_ease", "hip_ease", "hem_width", "hem_above_ankle")}
+
+
+def template_measurements(name: str, landmarks: BodyLandmarks | None = None, **measurements):
+    """The measurements dataclass (m) of a built-in template: its defaults on these landmarks,
+    overridden by `measurements`."""
+    lm = landmarks or default_landmarks()
+    if name == "tshirt":
+        return replace(TopMeasurements(), **measurements)
+    if name == "polo":
+        return replace(TopMeasurements(neck_width=0.18, front_neck_depth=0.06), **measurements)
+    if name == "longsleeve":
+        return replace(TopMeasurements(sleeve_length=0.58, bicep_width=0.34, cuff_width=0.24, fold_radius=0.17),
+                       **measurements)
+    if name == "dress":
+        return replace(TopMeasurements(length=lm.neck_base[1] - lm.knee_left[1] + 0.02, hem_flare=0.12, ease=0.08,
+                                       fold_radius=0.17), **measurements)
+    if name == "skirt":
+        return replace(SkirtMeasurements(), **measurements)
+    if name == "pants":
+        return replace(PantsMeasurements(), **measurements)
+    raise ValueError(f"name: unknown template {name!r} (built-ins: {sorted(TEMPLATES)})")
+
+
 def template_spec(name: str, landmarks: BodyLandmarks | None = None, **measurements) -> PatternSpec:
     """The parametric specification of a built-in template; measurements override defaults."""
     lm = landmarks or default_landmarks()
-    if name == "tshirt":
-        return _top_spec(name, lm, replace(TopMeasurements(), **measurements))
+    m = template_measurements(name, lm, **measurements)
+    if name in ("tshirt", "longsleeve", "dress"):
+        return _top_spec(name, lm, m)
     if name == "polo":
-        return _polo_spec(lm, replace(TopMeasurements(neck_width=0.18, front_neck_depth=0.06), **measurements))
-    if name == "longsleeve":
-        base = TopMeasurements(sleeve_length=0.58, bicep_width=0.34, cuff_width=0.24, fold_radius=0.17)
-        return _top_spec(name, lm, replace(base, **measurements))
-    if name == "dress":
-        base = TopMeasurements(length=lm.neck_base[1] - lm.knee_left[1] + 0.02, hem_flare=0.12, ease=0.08,
-                               fold_radius=0.17)
-        return _top_spec(name, lm, replace(base, **measurements))
+        return _polo_spec(lm, m)
     if name == "skirt":
-        return _skirt_spec(lm, replace(SkirtMeasurements(), **measurements))
-    if name == "pants":
-        return _pants_spec(lm, replace(PantsMeasurements(), **measurements))
-    raise ValueError(f"name: unknown template {name!r} (built-ins: {sorted(TEMPLATES)})")
+        return _skirt_spec(lm, m)
+    return _pants_spec(lm, m)
 
 
 def make_template(name: str, landmarks: BodyLandmarks | None = None, edge_length: float = 0.012,
