@@ -160,6 +160,9 @@ class Cloth:
         self.solver.set_sweep_plan(p)
 
     def set_control(self, rest=None, stretch_compliance=None, bend_stiffness=None, body_vertices=None):
+        """Changes the optimized parameters (Control). The lumped masses belong to the Model,
+        built once from the constructor's rest areas: a new `rest` changes the elastic rest
+        shape, not the masses (build a new Cloth for the masses of another pattern)."""
         c = self.solver.control
         if rest is not None:
             c.rest = _validate.points("rest", rest, dims=2)
@@ -344,6 +347,28 @@ class Cloth:
                                  progress=progress, cancel=cancel)
             its, pen = its + k, float(self.solver.max_penetration(self.x))
         return its, res, pen
+
+    def self_anchor(self, residual_tol: float, rounds: int = 3, tol: float = 1e-4, refine_iterations: int = 120,
+                    cancel=None) -> float:
+        """Re-solves the equilibrium with the static-friction anchors (κ = 1/s²) moved to the
+        current state, until the state stays put (no vertex moves more than tol, m; `rounds` at
+        most): an equilibrium of its own anchors, which a fresh Cloth of the same model and
+        control started there does not leave (a drape anchored elsewhere — an optimizer's warm
+        start — moves by up to its distance from it). A round that misses residual_tol or ends
+        in the body (deeper than 10% of the thickness) is undone and ends the rounds. Returns
+        the last completed round's largest move (m; inf if none completed)."""
+        move = float("inf")
+        for _ in range(max(int(rounds), 0)):
+            x0 = np.array(self.x)
+            _, res = self.refine(keep_anchor=False, residual_tol=residual_tol, refine_iterations=refine_iterations,
+                                 cancel=cancel)
+            if not (res <= residual_tol and not self.solver.max_penetration(self.x) > 0.1 * self.model.thickness):
+                self.reset(x0)
+                break
+            move = float(np.linalg.norm(np.asarray(self.x) - x0, axis=1).max())
+            if move <= tol:
+                break
+        return move
 
     def reequilibrate(self, x_warm, residual_tol: float = 1e-7, refine_iterations: int = 80,
                       max_steps: int = 600, iterations: int = 100, cancel=None, fast: bool = False,

@@ -46,3 +46,39 @@ def test_bad_anchors_are_named():
     bad[3, 1] = np.nan
     with pytest.raises(ValueError, match="anchor"):
         cloth.refine(anchor=bad)
+
+
+def test_self_anchor_ends_at_an_equilibrium_without_anchor_forces():
+    """A sheet hanging from two pinned corners, solved anchored to a state 1 cm off (an
+    optimizer's warm start), then re-anchored at itself (Cloth.self_anchor, which converges
+    geometrically): the anchor springs end unstretched, so the state is an equilibrium of
+    gravity and the cloth alone — a fresh Cloth started there with anchors 10⁶× weaker stays
+    within 1 µm, where from the anchored state it moves by more than 0.1 mm."""
+    rest, F = grid_sheet(0.2, 0.2, 9, 9)
+    x0 = np.column_stack([rest[:, 0], 1.0 - rest[:, 1], np.zeros(len(rest))])   # vertical, at rest length
+    top = np.flatnonzero(rest[:, 1] < 1e-12)
+    pinned = [int(top[np.argmin(rest[top, 0])]), int(top[np.argmax(rest[top, 0])])]
+
+    def sheet(x):
+        return Cloth(rest, F, x, pinned=pinned, materials=ClothMaterial(bend_stiffness=1e-5))
+
+    def free_move(x):   # how far a solve with negligible anchors takes a fresh cloth started at x
+        c = sheet(x)
+        _, res = c.refine(keep_anchor=False, anchor_stiffness=1e-6, residual_tol=1e-9, refine_iterations=200)
+        assert res <= 1e-9
+        return np.abs(np.array(c.x) - x).max()
+    cloth = sheet(x0)
+    cloth.refine(anchor=x0 + np.array([0.0, 0.0, 0.01]), residual_tol=1e-9, refine_iterations=200)
+    assert free_move(np.array(cloth.x)) > 1e-4
+    move = cloth.self_anchor(1e-9, rounds=6, tol=1e-8)
+    assert move <= 1e-8
+    assert free_move(np.array(cloth.x)) < 1e-6
+    assert cloth.self_anchor(1e-9, rounds=1) <= 1e-8      # and a converged state stays put
+
+
+def test_self_anchor_undoes_a_round_that_misses_the_tolerance():
+    """A round that cannot reach residual_tol (here: an unreachable 0) leaves the state as it was
+    and reports no completed round (inf)."""
+    cloth, x0 = _flat_sheet()
+    assert cloth.self_anchor(0.0, rounds=2, refine_iterations=3) == float("inf")
+    np.testing.assert_array_equal(np.array(cloth.x), x0)
