@@ -7,7 +7,8 @@ random shape → sew + drape → scan-like mesh (subdivided, 2 mm noise, holes, 
 fragments, cm). Recovery starts from the unperturbed template and the default material.
 Variants: full; no_cage (every pattern vertex optimized); no_seam (α = 0); no_curvature (β = 0);
 euclidean (L-BFGS without the H¹ metric on the pattern, sobolev_length 0: a reference run);
-unguided (no scan-guided drapes, guided_stiffness 0: a reference run).
+unguided (no scan-guided drapes, guided_stiffness 0: a reference run); no_measurement_fit (the
+handles start on the template's outline, measurement_fit_iterations 0: a reference run).
 
 Run: `.venv/bin/python bench/recover.py [--cases N] [--iterations N] [--variants full,no_cage]
 [--output-edge 0.008] [--first-case K]`.
@@ -28,8 +29,9 @@ from diffavatar_core.pipeline.options import Weights
 from diffavatar_core.pipeline.synthetic import make_case
 
 VARIANTS = ("full", "no_cage", "no_seam", "no_curvature")
-EXTRA_VARIANTS = ("euclidean", "unguided")   # not ablations of the paper: the reference runs of the L-BFGS metric
-                                            # before the H¹ one, and of the recovery without scan-guided drapes
+# not ablations of the paper: the reference runs of the L-BFGS metric before the H¹ one, of the recovery without
+# scan-guided drapes and without the template measurement fit
+EXTRA_VARIANTS = ("euclidean", "unguided", "no_measurement_fit")
 
 
 def corner_edge_lengths(g, corners_from=None) -> list:
@@ -71,6 +73,8 @@ def options_for(variant, iterations, output_edge=0.0):
         return o.with_(sobolev_length=0.0)
     if variant == "unguided":
         return o.with_(guided_stiffness=0.0)
+    if variant == "no_measurement_fit":
+        return o.with_(measurement_fit_iterations=0)
     if variant != "full":
         raise ValueError(f"unknown variant {variant!r}: one of {VARIANTS + EXTRA_VARIANTS}")
     return o
@@ -97,6 +101,7 @@ def run_case(case, variant, iterations, output_edge=0.0):
         "iterations": r.iterations, "stopped": m["stopped"],
         "fresh_drapes_kept": m.get("fresh_drapes_kept"), "guided_drapes_kept": m.get("guided_drapes_kept"),
         "output_drape": m.get("output_drape"),
+        "measurement_fit": m.get("measurement_fit"),
     }
 
 

@@ -30,6 +30,7 @@ from ..optim import minimize
 from ..pattern.regularizers import CurvatureRegularizer, SeamLengthRegularizer
 from ..pattern.sobolev import SobolevMetric
 from .guided_drape import guided_equilibrium
+from .measurement_fit import fit_measurements
 from .options import RecoverOptions
 
 
@@ -46,6 +47,7 @@ class CoOptResult:
     stopped: str
     fresh_kept: int = 0          # fresh drapes (fresh_every) that became the warm start
     guided_kept: int = 0         # scan-guided drapes (guided_stiffness) that became the warm start
+    measurement_fit: object = None  # measurement_fit.MeasurementFitResult of the first stage, or None
 
 
 def seam_mismatch_pct(g, rest) -> float:
@@ -287,15 +289,36 @@ class _EvaluationFailed(ValueError):
 
 def co_optimize(cloth, garment, scan_points, scan_loops: dict, opts: RecoverOptions, cage=None,
                 body_model=None, body_params: BodyParams | None = None, on_iteration=None,
-                cancelled=lambda: False, cancel=None, body_points=None, scan_mesh=None) -> CoOptResult:
+                cancelled=lambda: False, cancel=None, body_points=None, scan_mesh=None,
+                measurement_map=None) -> CoOptResult:
     """Minimizes CoOptObjective (same arguments) from the template's parameters (opts.optimizer,
     opts.iterations accepted steps at most); the last iterate is re-draped — and, with a scan
     mesh and opts.guided_stiffness, also guided toward the scan, the lower-φ equilibrium kept —
-    and returned."""
+    and returned. measurement_map (a measurement_fit.MeasurementMap of the template's cage):
+    first the template's measurements are fitted (opts.measurement_fit_iterations steps at most,
+    the rest held) and the handles start on the fitted outline; its iterations come first in the
+    history, marked stage 'measurements'."""
     obj = CoOptObjective(cloth, garment, scan_points, scan_loops, opts, cage, body_model, body_params, cancel,
                          body_points, scan_mesh)
     params = obj.initial_params()
-    if opts.iterations == 0:
+    history, fit, base = [], None, 0
+    if opts.iterations and opts.measurement_fit_iterations and measurement_map is not None:
+        def report_fit(h):
+            history.append({**h, "stage": "measurements"})
+            if on_iteration:
+                on_iteration(history[-1])
+        try:
+            fit = fit_measurements(obj, measurement_map, params, opts.measurement_fit_iterations,
+                                   opts.step_sizes.measurements, on_iteration=report_fit, cancelled=cancelled)
+        except (ValueError, FloatingPointError):   # not evaluable at the template: the co-optimization decides
+            history = []
+        if fit is not None:
+            zeta = fit.handles if cage is not None else measurement_map.cage.rest(fit.handles)
+            params["handles"] = zeta.reshape(-1).copy()
+            base = fit.iterations
+    if fit is not None and fit.stopped == "cancelled":
+        best, it, rej, stopped, kept, gkept = params, 0, 0, "cancelled", 0, 0
+    elif opts.iterations == 0:
         value, _, terms = obj(params)
         history = [{"iteration": 0, "value": value, "terms": terms, "lr": obj.step_sizes()}]
         if on_iteration:
@@ -314,7 +337,7 @@ def co_optimize(cloth, garment, scan_points, scan_loops: dict, opts: RecoverOpti
         if 0 < fresh_every < n_it:
             cuts |= set(range(fresh_every, n_it, fresh_every))
         cuts = sorted(cuts)
-        history, it, rej, stopped = [], 0, 0, "max_iterations"
+        it, rej, stopped = 0, 0, "max_iterations"
         fresh_used, guided_used = [], []
         pre = obj.precondition() if opts.optimizer == "lbfgs" else {}
 
@@ -350,7 +373,7 @@ def co_optimize(cloth, garment, scan_points, scan_loops: dict, opts: RecoverOpti
                     raise _EvaluationFailed(str(exc)) from exc
                 return value, {g: v for g, v in grads.items() if g not in held}, terms
 
-            def report(h, offset=it):
+            def report(h, offset=base + it):
                 h = {**h, "iteration": h["iteration"] + offset}
                 if offset and h["iteration"] == offset:
                     return   # the stage's starting point is the previous stage's last iterate
@@ -380,4 +403,4 @@ def co_optimize(cloth, garment, scan_points, scan_loops: dict, opts: RecoverOpti
         cloth.set_control(rest=rest, bend_stiffness=bend, body_vertices=bv)
         cloth.reset(obj.x_warm)
     return CoOptResult(rest, bend, bp if obj.use_body else body_params, bv, np.array(cloth.x), history, it, rej,
-                       stopped, kept, gkept)
+                       stopped, kept, gkept, fit)

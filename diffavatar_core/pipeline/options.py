@@ -30,6 +30,7 @@ class StepSizes:
     log10_bending: float = 0.1
     shape: float = 0.02
     pose: float = 0.002
+    measurements: float = 0.01
 
 
 @dataclass(frozen=True)
@@ -57,6 +58,7 @@ class RecoverOptions:
     body_trim_distance: float = 0.05
     length_measure: str = "raw"
     fresh_every: int = 5
+    measurement_fit_iterations: int = 10
     guided_stiffness: float = 1.0e4
     guided_capture: float = 0.03
     length_tolerance_pct: float = 2.0
@@ -78,7 +80,8 @@ class RecoverOptions:
         def bad(name, why):
             raise ValueError(f"recover options: {name} {why}, got {getattr(self, name)!r}")
         for name in ("iterations", "samples", "drape_steps", "drape_iterations", "patience", "bending_after",
-                     "body_after", "output_drape_steps", "fresh_every", "reevaluations"):
+                     "body_after", "output_drape_steps", "fresh_every", "reevaluations",
+                     "measurement_fit_iterations"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < 0:
                 bad(name, "must be a non-negative integer")
@@ -94,6 +97,9 @@ class RecoverOptions:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
                 bad(name, "must be a number >= 0")
+        if self.measurement_fit_iterations and not self.step_sizes.measurements > 0:
+            raise ValueError("recover options: step_sizes.measurements must be positive when "
+                             f"measurement_fit_iterations is {self.measurement_fit_iterations}")
         if not isinstance(self.optimize_body, bool):
             bad("optimize_body", "must be true or false")
         if self.output_drape_steps < 1:

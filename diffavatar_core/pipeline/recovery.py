@@ -27,13 +27,14 @@ from ..metrics import chamfer_meshes, mesh_quality
 from ..pattern.cage import build_cage
 from ..pattern.export import pattern_assets
 from ..pattern.garment import Garment
-from ..pattern.templates import TEMPLATES, make_template
+from ..pattern.templates import FIT_MEASUREMENTS, TEMPLATES, make_template
 from ..scan import ScanData, load_scan
 from ..scan.errors import ScanError
 from ..sim.cloth import Cloth
 from ..sim.drape_job import SUBSTEPS
 from ..sim.material import ClothMaterial
 from .coopt import co_optimize, seam_mismatch_pct
+from .measurement_fit import MeasurementMap
 from .options import RecoverOptions
 from .refine import push_outside, transfer_pattern, transfer_positions
 from .result import BodyAssets, MaterialAssets, RecoveryResult
@@ -113,15 +114,29 @@ def _fine_output(g, cage, co, fine: Garment, material, body_vertices, body_faces
     differentiated here. Raises ValueError when the cloth does not settle."""
     rest = transfer_pattern(g, cage, co.rest[cage.handles], fine)   # MVC interpolate: ζ = x̄[handles]
     x0 = transfer_positions(g, co.x, fine)
-    cloth = Cloth(fine.rest, fine.faces, x0, seams=fine.seams, groups=fine.panel[fine.faces[:, 0]],
+    # built on the recovered rest: the masses are the model's, from the constructor's rest areas
+    cloth = Cloth(rest, fine.faces, x0, seams=fine.seams, groups=fine.panel[fine.faces[:, 0]],
                   materials=[material] * len(fine.panels), body=(body_vertices, body_faces), grain=fine.face_grain())
-    cloth.set_control(rest=rest, bend_stiffness=np.asarray(co.bend_stiffness, float))
+    cloth.set_control(bend_stiffness=np.asarray(co.bend_stiffness, float))
     cloth.reset(push_outside(x0, body_vertices, body_faces, float(cloth.model.thickness)))
     s = cloth.settle(max_steps=opts.output_drape_steps, displacement_tol=opts.output_settle_tol,
                      iterations=OUTPUT_SWEEPS, substeps=SUBSTEPS, fast=True, cancel=cancel)
     if not s.settled:
         raise ValueError(s.message)
     return fine, rest, np.array(cloth.x), s
+
+
+def _assets_drape(g, co, material, body_vertices, body_faces, opts, cancel):
+    """(V, 3) m: the co-optimization's drape re-solved on a Cloth built from the recovered
+    pattern — whose masses are those of its own rest areas; the optimizer's cloth keeps the
+    template's (a Cloth's model is built once; set_control changes the elastic rest shape) —
+    and re-anchored at itself until it stays put (Cloth.self_anchor): the equilibrium of the
+    written assets, which reloaded do not move. None when it does not re-solve."""
+    cloth = Cloth(co.rest, g.faces, co.x, seams=g.seams, groups=g.panel[g.faces[:, 0]],
+                  materials=[material] * len(g.panels), body=(body_vertices, body_faces), grain=g.face_grain())
+    cloth.set_control(bend_stiffness=np.asarray(co.bend_stiffness, float))
+    move = cloth.self_anchor(opts.residual_tol, cancel=cancel)
+    return np.array(cloth.x) if np.isfinite(move) else None
 
 
 def _body_assets(model: BodyModel, p) -> BodyAssets:
@@ -206,15 +221,19 @@ def recover(scan, options=None, run_control=None, *, progress=None, cancel=None,
 
     # co-optimization ------------------------------------------------------------------------
     cage = build_cage(g) if opts.parametrization == "cage" else None
-    ctl.report("optimize", 0, opts.iterations)
+    mmap = None   # the measurement fit: built-in templates (their outline is parametric)
+    if opts.measurement_fit_iterations and template_name in FIT_MEASUREMENTS and remake is not None:
+        mmap = MeasurementMap(template_name, lm, g, cage if cage is not None else build_cage(g))
+    n_total = opts.iterations + (opts.measurement_fit_iterations if mmap is not None and opts.iterations else 0)
+    ctl.report("optimize", 0, n_total)
 
     def on_iteration(h):
-        ctl.report("optimize", h["iteration"], opts.iterations, h["value"], h["terms"])
+        ctl.report("optimize", h["iteration"], n_total, h["value"], h["terms"])
 
     co = co_optimize(cloth, g, data.interior_points, data.boundaries, opts, cage=cage, body_model=model,
                      body_params=body_params, on_iteration=on_iteration, cancelled=lambda: ctl.cancelled,
                      cancel=ctl.token, body_points=data.vertices[body_mask] if full else None,
-                     scan_mesh=data.garment_mesh())
+                     scan_mesh=data.garment_mesh(), measurement_map=mmap)
     ctl.check("optimize")
 
     body_final = co.body_vertices if co.body_vertices is not None else body_vertices
@@ -238,6 +257,13 @@ def recover(scan, options=None, run_control=None, *, progress=None, cancel=None,
             except ValueError as exc:   # nothing produced so far is lost: keep the coarse result
                 warnings.append(f"the fine output mesh (edge {fine_edge} m) did not settle ({exc}); "
                                 f"the optimized mesh (edge {opts.edge_length} m) is returned")
+    if g_out is g:   # the optimized mesh is the output
+        x_assets = _assets_drape(g, co, material, body_final, model.faces, opts, ctl.token)
+        if x_assets is None:
+            warnings.append("the recovered drape did not re-solve with the recovered pattern's own masses; the "
+                            "optimizer's drape (template masses) is returned")
+        else:
+            x_out = x_assets
 
     # result ------------------------------------------------------------------------------------
     ctl.report("metrics")
@@ -253,6 +279,7 @@ def recover(scan, options=None, run_control=None, *, progress=None, cancel=None,
         "pattern_area_m2": g_final.total_area(), "template_area_m2": g.total_area(),
         "stopped": co.stopped, "rejected_iterations": co.rejected, "fresh_drapes_kept": co.fresh_kept,
         "guided_drapes_kept": co.guided_kept,
+        "measurement_fit": co.measurement_fit.to_json() if co.measurement_fit is not None else None,
         "optimized_vertices": int(len(g.rest)), "output_vertices": int(len(rest_out)),
         "output_drape": output_drape,
     }
@@ -268,7 +295,8 @@ def recover(scan, options=None, run_control=None, *, progress=None, cancel=None,
         body=_body_assets(model, co.body_params), garment_vertices=x_out, garment_faces=g_out.faces.astype(np.int64),
         garment_uv=rest_out.copy(), body_vertices=body_final, body_faces=np.asarray(model.faces, np.int64),
         metrics=metrics, iterations=co.iterations, wall_s=time.perf_counter() - t0,
-        loss_history=[{"iteration": h["iteration"], "value": h["value"], "terms": h["terms"]} for h in co.history])
+        loss_history=[{"iteration": h["iteration"], "value": h["value"], "terms": h["terms"],
+                       "stage": h.get("stage", "co_optimization")} for h in co.history])
     result.garment = g_final
     result.template = g_out   # the template mesh the pattern was deformed from (same vertices; its rest unchanged)
     result.body_params = co.body_params

@@ -57,7 +57,8 @@ class RecoveryResult:
     metrics: dict                   # chamfer_initial_cm, chamfer_final_cm, mesh_quality_min/avg, seam_length_mismatch_max_pct
     iterations: int
     wall_s: float
-    loss_history: list = field(default_factory=list)  # per iteration: {"iteration", "value", "terms"}
+    loss_history: list = field(default_factory=list)  # per iteration: {"iteration", "value", "terms", "stage"}
+    # (stage: 'measurements' — the template measurement fit, first — or 'co_optimization')
     output_dir: str = ""
     garment: object = None          # the recovered pattern.Garment (writes pattern.json/.svg/.png)
     body_params: object = None      # body.BodyParams as fitted (Euler joint angles; exact re-posing)
