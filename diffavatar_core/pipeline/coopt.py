@@ -375,8 +375,8 @@ def co_optimize(cloth, garment, scan_points, scan_loops: dict, opts: RecoverOpti
 
             def report(h, offset=base + it):
                 h = {**h, "iteration": h["iteration"] + offset}
-                if offset and h["iteration"] == offset:
-                    return   # the stage's starting point is the previous stage's last iterate
+                if history and history[-1]["iteration"] == h["iteration"]:
+                    return   # the stage's starting point is the previous stage's (or the fit's) last iterate
                 history.append(h)
                 if on_iteration:
                     on_iteration(h)

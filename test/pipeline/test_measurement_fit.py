@@ -10,7 +10,7 @@ from diffavatar_core.pattern.cage import build_cage
 from diffavatar_core.pattern.garment import Garment, PanelInfo
 from diffavatar_core.pattern.templates import FIT_MEASUREMENTS, make_template, template_spec
 from diffavatar_core.pipeline import RecoverOptions
-from diffavatar_core.pipeline.coopt import CoOptObjective
+from diffavatar_core.pipeline.coopt import CoOptObjective, co_optimize
 from diffavatar_core.pipeline.measurement_fit import MeasurementMap, fit_measurements, measurement_objective
 from diffavatar_core.sim.cloth import Cloth
 from diffavatar_core.sim.material import ClothMaterial
@@ -133,3 +133,29 @@ def test_bad_inputs_name_the_problem():
     with pytest.raises(ValueError, match="step_sizes.measurements"):
         o = RecoverOptions.from_config()
         o.with_(step_sizes=type(o.step_sizes)(measurements=0.0))
+
+
+def test_co_optimize_runs_the_fit_first(skirt_problem):
+    """co_optimize with a measurement map: the fit's iterations open the history (stage
+    'measurements'), the co-optimization's follow, numbered on without a repeated start; the
+    co-optimization's first pattern is the fitted outline."""
+    lm, g, cloth, pts, loops = skirt_problem
+    x_keep, rest_keep = np.array(cloth.x), np.array(cloth.control.rest)
+    cage = build_cage(g)
+    mm = MeasurementMap("skirt", lm, g, cage)
+    opts = RecoverOptions.from_config(residual_tol=1e-8, samples=300, bending="fixed", optimize_body=False,
+                                      iterations=2, measurement_fit_iterations=3, fresh_every=0,
+                                      guided_stiffness=0.0)
+    starts = []
+    res = co_optimize(cloth, g, pts, loops, opts, cage=cage, measurement_map=mm,
+                      on_iteration=lambda h: starts.append(np.array(cloth.control.rest)))
+    fit = res.measurement_fit
+    assert fit is not None and fit.iterations >= 1 and fit.value < fit.value0
+    n_fit = fit.iterations + 1
+    assert [h.get("stage") for h in res.history[:n_fit]] == ["measurements"] * n_fit
+    assert all("stage" not in h for h in res.history[n_fit:]) and len(res.history) == n_fit + res.iterations
+    assert [h["iteration"] for h in res.history] == list(range(len(res.history)))
+    np.testing.assert_allclose(starts[n_fit - 1], cage.rest(fit.handles), atol=1e-12)
+    assert abs(fit.values[0] - TRUE_LENGTH) < abs(fit.values0[0] - TRUE_LENGTH)
+    cloth.set_control(rest=rest_keep)
+    cloth.reset(x_keep)

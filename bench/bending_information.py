@@ -1,0 +1,56 @@
+"""How much a synthetic scan says about the bending stiffness (issue 7's ±0.15-decade target):
+for each benchmark case, the ground-truth garment itself — its own triangulation, pattern and
+body, i.e. everything but the bending exact — draped fresh (as the truth was) at the true
+stiffness × 10^d, and the Chamfer distance of that drape to the scan (cm). d = 0 is the scan's
+noise floor; how fast the distance grows with |d| is the information the data holds about the
+bending when nothing else is wrong. Prints JSON per case. Not a test.
+
+Run: `.venv/bin/python bench/bending_information.py [--templates skirt,tshirt] [--cases 3]`."""
+import argparse
+import json
+import time
+
+import numpy as np
+
+from diffavatar_core.metrics import chamfer_meshes
+from diffavatar_core.pipeline.synthetic import drape_truth, make_case
+from diffavatar_core.scan import load_scan
+
+OFFSETS = (-1.0, -0.5, -0.15, 0.0, 0.15, 0.5, 1.0)   # decades
+
+
+def case_row(template: str, seed: int, bend: float) -> dict:
+    t0 = time.perf_counter()
+    case = make_case(template, seed=seed, bend_stiffness=bend)
+    scan = load_scan((case.scan_vertices, case.scan_faces, case.scan_labels), units=case.units, up=case.up)
+    Vs, Fs = scan.garment_mesh()
+    g = case.garment
+    row = {"template": template, "seed": seed, "bend_stiffness_Nm": bend, "garment_vertices": len(g.rest),
+           "chamfer_cm_by_offset_decades": {}}
+    for d in OFFSETS:
+        try:
+            cloth, _ = drape_truth(g, (case.body_vertices, case.body_faces), bend * 10 ** d)
+            cm = 100 * chamfer_meshes(np.asarray(cloth.x), g.faces, Vs, Fs, samples=20000)
+            row["chamfer_cm_by_offset_decades"][f"{d:+.2f}"] = round(cm, 4)
+        except RuntimeError as exc:   # the truth's drape at that stiffness slid off / did not converge
+            row["chamfer_cm_by_offset_decades"][f"{d:+.2f}"] = str(exc)
+    row["wall_s"] = time.perf_counter() - t0
+    return row
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--templates", default="skirt,tshirt")
+    ap.add_argument("--cases", type=int, default=3)
+    args = ap.parse_args()
+    rows = []
+    for tpl in args.templates.split(","):
+        for k in range(args.cases):
+            bend = 10 ** (-6 + 2 * k / max(args.cases - 1, 1))   # as bench/recover.py
+            rows.append(case_row(tpl, 100 + k, bend))
+            print(json.dumps(rows[-1]), flush=True)
+    print(json.dumps({"benchmark": "bending_information", "offsets_decades": OFFSETS, "cases": rows}, indent=2))
+
+
+if __name__ == "__main__":
+    main()
