@@ -1,10 +1,11 @@
 """Co-optimization of pattern, material and body through the differentiable drape (paper §4.2).
 
 θ = {control-cage handles ζ of every panel (Eq. 5: x̄ = W ζ) — or every pattern vertex, the
-'without control cage' ablation —, log10 bending stiffness (one per garment or per panel), body
-shape ν and pose ψ}. Each evaluation re-drapes from the previous equilibrium (Newton from the
-warm start; a full XPBD + Newton drape only if that fails; every `fresh_every` iterations also a
-drape from the template layout and a scan-guided drape (guided_drape.py), each kept as the warm
+'without control cage' ablation —, log10 bending stiffness (one per garment or per panel),
+optionally log10 stretch compliances (warp, weft, shear; one set), body shape ν and pose ψ}.
+Each evaluation re-drapes from the previous equilibrium (Newton from the warm start; a full
+XPBD + Newton drape only if that fails; every `fresh_every` iterations also a drape from the
+template layout and a scan-guided drape (guided_drape.py), each kept as the warm
 start when its φ is lower), evaluates
     φ = ρ L_boundary + σ L_interior + α L_seam(x̄) + β L_curvature(x̄)
         + δ L_body(ν, ψ) + γ |(ν, ψ) − (ν, ψ)_fit|²,
@@ -48,6 +49,7 @@ class CoOptResult:
     fresh_kept: int = 0          # fresh drapes (fresh_every) that became the warm start
     guided_kept: int = 0         # scan-guided drapes (guided_stiffness) that became the warm start
     measurement_fit: object = None  # measurement_fit.MeasurementFitResult of the first stage, or None
+    stretch_compliance: np.ndarray | None = None  # (G, 3) m/N [warp, weft, shear] of the returned drape
 
 
 def seam_mismatch_pct(g, rest) -> float:
@@ -69,8 +71,8 @@ class CoOptObjective:
     body_points (N, 3) m: the scan's body-labelled points (full scans; None or empty: no L_body);
     scan_mesh (V (N, 3) m, F (M, 3)): the scan's garment surface, for scan-guided drapes
     (try_guided; None: none).
-    Parameter groups: handles ((H·2,) m), log_bend ((1,) or (G,) log10 N·m), shape ((K,)),
-    pose ((J·3,) rad)."""
+    Parameter groups: handles ((H·2,) m), log_bend ((1,) or (G,) log10 N·m), log_stretch ((3,)
+    log10 m/N, opts.stretch 'garment'), shape ((K,)), pose ((J·3,) rad)."""
 
     def __init__(self, cloth, garment, scan_points, scan_loops: dict, opts: RecoverOptions, cage=None,
                  body_model=None, body_params: BodyParams | None = None, cancel=None, body_points=None,
@@ -111,6 +113,8 @@ class CoOptObjective:
         if o.bending != "fixed":
             b0 = np.log10(np.maximum(np.asarray(c0.bend_stiffness), 1e-12))
             params["log_bend"] = b0 if o.bending == "panel" else np.array([b0.mean()])
+        if o.stretch != "fixed":   # one [warp, weft, shear] set (geometric mean over the groups)
+            params["log_stretch"] = np.log10(np.asarray(c0.stretch_compliance).reshape(-1, 3)).mean(axis=0)
         if self.use_body:
             params["shape"] = self.p0.shape.copy()
             params["pose"] = self.p0.pose.reshape(-1).copy()
@@ -121,6 +125,8 @@ class CoOptObjective:
         lr = {"handles": s.handles}
         if self.opts.bending != "fixed":
             lr["log_bend"] = s.log10_bending
+        if self.opts.stretch != "fixed":
+            lr["log_stretch"] = s.log10_stretch
         if self.use_body:
             lr["shape"], lr["pose"] = s.shape, s.pose
         return lr
@@ -148,11 +154,19 @@ class CoOptObjective:
             bp.pose[:] = np.asarray(params["pose"]).reshape(self.model.num_joints, 3)
         return rest, bend, bp
 
-    def drape_at(self, rest, bend, body_vertices):
+    def stretch(self, params):
+        """(G, 3) m/N [warp, weft, shear] compliances per group of a parameter dict, or None when
+        they are not optimized (the cloth keeps its own)."""
+        if self.opts.stretch == "fixed":
+            return None
+        return np.broadcast_to(10.0 ** np.asarray(params["log_stretch"], np.float64), (self.ngroups, 3)).copy()
+
+    def drape_at(self, rest, bend, body_vertices, stretch=None):
         """Equilibrium at these controls, warm-started from the last one (Newton; a full XPBD +
         Newton drape if that fails). Raises ValueError when no equilibrium is reached."""
         o = self.opts
-        self.cloth.set_control(rest=rest, bend_stiffness=bend, body_vertices=body_vertices)  # ValueError: inverted
+        self.cloth.set_control(rest=rest, bend_stiffness=bend, body_vertices=body_vertices,
+                               stretch_compliance=stretch)  # ValueError: inverted
         self.cloth.reequilibrate(self.x_warm, o.residual_tol, max_steps=o.drape_steps, iterations=o.drape_iterations,
                                  cancel=self.cancel)
 
@@ -164,7 +178,8 @@ class CoOptObjective:
         if mismatch > o.max_seam_mismatch_pct:
             raise ValueError(f"seam mismatch {mismatch:.1f}% above the limit")
         bv = self.model.pose(bp) if self.use_body else None
-        self.drape_at(rest, bend, bv)
+        stretch = self.stretch(params)
+        self.drape_at(rest, bend, bv, stretch)
         x = np.array(self.cloth.x)
         li = interior_loss(x, self.faces, self.samples, self.scan_points)
         lb = boundary_loss(x, self.loops, self.scan_loops) if self.loops else None
@@ -183,6 +198,8 @@ class CoOptObjective:
         if o.bending != "fixed":
             gb = np.asarray(ga["bend_stiffness"]) * bend * np.log(10.0)
             grads["log_bend"] = gb if o.bending == "panel" else np.array([gb.sum()])
+        if stretch is not None:   # d/dlog10 α = α ln10 dφ/dα, summed over the groups (one shared set)
+            grads["log_stretch"] = (np.asarray(ga["stretch_compliance"]).reshape(-1, 3) * stretch * np.log(10.0)).sum(axis=0)
         if self.use_body:
             sl = self.model.param_slices()
             g_body = np.asarray(ga["body_vertices"])
@@ -201,11 +218,11 @@ class CoOptObjective:
         self.x_last = x
         return float(value), grads, terms
 
-    def fresh_drape_at(self, rest, bend, body_vertices):
+    def fresh_drape_at(self, rest, bend, body_vertices, stretch=None):
         """Equilibrium at these controls from the template's own 3D layout — sewn and draped as
         the initial drape is, not warm-started. Raises ValueError when it does not converge."""
         o = self.opts
-        self.cloth.set_control(rest=rest, bend_stiffness=bend, body_vertices=body_vertices)
+        self.cloth.set_control(rest=rest, bend_stiffness=bend, body_vertices=body_vertices, stretch_compliance=stretch)
         self.cloth.reset(self.g.x0)
         self.cloth.sew(cancel=self.cancel)
         r = self.cloth.drape(max_steps=max(o.drape_steps, 1), iterations=o.drape_iterations,
@@ -247,7 +264,8 @@ class CoOptObjective:
         of the current pattern. An evaluation that fails counts as φ = ∞."""
         rest, bend, bp = self.unpack(params)
         bv = self.model.pose(bp) if self.use_body else None
-        v_warm, v_fresh, kept = self._try_candidate(params, lambda _: self.fresh_drape_at(rest, bend, bv))
+        stretch = self.stretch(params)
+        v_warm, v_fresh, kept = self._try_candidate(params, lambda _: self.fresh_drape_at(rest, bend, bv, stretch))
         self.last_fresh = (v_warm, v_fresh)
         return kept
 
@@ -331,7 +349,7 @@ def co_optimize(cloth, garment, scan_points, scan_loops: dict, opts: RecoverOpti
         # of the pattern); fresh_every N: every N iterations the lower-φ of the warm, a fresh and
         # a scan-guided drape of the current parameters becomes the warm start
         n_it, fresh_every = opts.iterations, opts.fresh_every
-        bend_after = opts.bending_after if "log_bend" in params else 0
+        bend_after = opts.bending_after if ("log_bend" in params or "log_stretch" in params) else 0
         body_after = opts.body_after if obj.use_body else 0
         cuts = {0, n_it} | {c for c in (bend_after, body_after) if 0 < c < n_it}
         if 0 < fresh_every < n_it:
@@ -356,8 +374,8 @@ def co_optimize(cloth, garment, scan_points, scan_loops: dict, opts: RecoverOpti
         for start, end in zip(cuts, cuts[1:]):
             n = end - start
             held = {}
-            if start < bend_after:
-                held["log_bend"] = params["log_bend"]
+            if start < bend_after:   # the material held: bending and (when optimized) stretch
+                held.update({g: params[g] for g in ("log_bend", "log_stretch") if g in params})
             if start < body_after:
                 held.update(shape=params["shape"], pose=params["pose"])
             if fresh_every and 0 < start < n_it and start % fresh_every == 0:
@@ -397,10 +415,11 @@ def co_optimize(cloth, garment, scan_points, scan_loops: dict, opts: RecoverOpti
         kept, gkept = int(sum(fresh_used)), int(sum(guided_used))
     rest, bend, bp = obj.unpack(best)
     bv = body_model.pose(bp) if obj.use_body else None
+    stretch = obj.stretch(best)
     try:
-        obj.drape_at(rest, bend, bv)   # the best iterate's equilibrium
+        obj.drape_at(rest, bend, bv, stretch)   # the best iterate's equilibrium
     except ValueError:   # keep its committed (anchored) equilibrium
-        cloth.set_control(rest=rest, bend_stiffness=bend, body_vertices=bv)
+        cloth.set_control(rest=rest, bend_stiffness=bend, body_vertices=bv, stretch_compliance=stretch)
         cloth.reset(obj.x_warm)
     return CoOptResult(rest, bend, bp if obj.use_body else body_params, bv, np.array(cloth.x), history, it, rej,
-                       stopped, kept, gkept, fit)
+                       stopped, kept, gkept, fit, np.asarray(cloth.control.stretch_compliance).reshape(-1, 3).copy())

@@ -11,6 +11,7 @@ from ..config import load_config
 PARAMETRIZATIONS = ("cage", "vertices")
 OPTIMIZERS = ("lbfgs", "adam")
 BENDING = ("garment", "panel", "fixed")
+STRETCH = ("fixed", "garment")
 
 
 @dataclass(frozen=True)
@@ -28,6 +29,7 @@ class Weights:
 class StepSizes:
     handles: float = 0.004
     log10_bending: float = 0.1
+    log10_stretch: float = 0.1
     shape: float = 0.02
     pose: float = 0.002
     measurements: float = 0.01
@@ -44,6 +46,7 @@ class RecoverOptions:
     parametrization: str = "cage"
     optimizer: str = "lbfgs"
     bending: str = "garment"
+    stretch: str = "fixed"
     bending_after: int = 0
     body_after: int = 0
     optimize_body: bool = True
@@ -115,6 +118,8 @@ class RecoverOptions:
             bad("optimizer", f"must be one of {OPTIMIZERS}")
         if self.bending not in BENDING:
             bad("bending", f"must be one of {BENDING}")
+        if self.stretch not in STRETCH:
+            bad("stretch", f"must be one of {STRETCH}")
         if self.units not in ("m", "cm", "mm"):
             bad("units", "must be m, cm or mm")
         if self.up not in ("y", "z"):

@@ -237,6 +237,10 @@ def recover(scan, options=None, run_control=None, *, progress=None, cancel=None,
     ctl.check("optimize")
 
     body_final = co.body_vertices if co.body_vertices is not None else body_vertices
+    if co.stretch_compliance is not None:   # the recovered compliances (opts.stretch; else the material's)
+        warp, weft, shear = np.exp(np.log(co.stretch_compliance).mean(axis=0))
+        material = ClothMaterial(density=material.density, warp_compliance=float(warp), weft_compliance=float(weft),
+                                 shear_compliance=float(shear), bend_stiffness=material.bend_stiffness)
     warnings = list(data.warnings)
 
     # output resolution (coarse-to-fine through the cage) ------------------------------------------

@@ -404,3 +404,45 @@ def test_revert_undoes_every_commit_of_a_trial(skirt_problem):
     for k in (3, 2, 1, 0):
         obj.revert()
         assert np.allclose(obj.x_warm, x0 + 0.001 * k)
+
+
+def test_stretch_compliance_gradient_and_result(skirt_problem):
+    """stretch: garment — dφ/dlog10 α of the shared [warp, weft, shear] compliances against
+    central differences (the adjoint's dφ/dα chained through α ln10 and summed over the panels),
+    and co_optimize returns the compliances its final drape was solved with (10^log_stretch)."""
+    from diffavatar_core.pipeline.coopt import co_optimize
+    model, p, g, cloth, pts, loops = skirt_problem
+    x_keep, rest_keep = np.array(cloth.x), np.array(cloth.control.rest)
+    c_keep = np.array(cloth.control.stretch_compliance)
+    opts = RecoverOptions.from_config(residual_tol=1e-8, samples=500, bending="fixed", stretch="garment",
+                                      optimize_body=False)
+    obj = CoOptObjective(cloth, g, pts, loops, opts, cage=build_cage(g))
+    theta = obj.initial_params()
+    np.testing.assert_allclose(theta["log_stretch"], np.log10(ClothMaterial().compliance))
+    theta["log_stretch"] = theta["log_stretch"] + np.array([0.3, -0.2, 0.1])
+
+    def phi(t):
+        obj.x_warm = x_keep
+        return obj(t)
+    _, grads, _ = phi(theta)
+    an = grads["log_stretch"]
+    assert an.shape == (3,)
+    for k in range(3):
+        tp = {kk: np.array(v, float) for kk, v in theta.items()}
+        tm = {kk: np.array(v, float) for kk, v in theta.items()}
+        tp["log_stretch"][k] += 1e-4
+        tm["log_stretch"][k] -= 1e-4
+        fd = (phi(tp)[0] - phi(tm)[0]) / 2e-4
+        assert abs(an[k] - fd) <= 1e-4 * max(np.abs(an).max(), 1e-12), (k, an[k], fd)
+    np.testing.assert_allclose(np.array(cloth.control.stretch_compliance), 10.0 ** np.broadcast_to(
+        tm["log_stretch"], c_keep.shape), rtol=1e-12)   # the last evaluation's
+    cloth.set_control(rest=rest_keep, stretch_compliance=c_keep)
+    cloth.reset(x_keep)
+    res = co_optimize(cloth, g, pts, loops, opts.with_(iterations=2, fresh_every=0, guided_stiffness=0.0,
+                                                       measurement_fit_iterations=0), cage=build_cage(g))
+    assert res.stretch_compliance.shape == c_keep.shape
+    np.testing.assert_allclose(res.stretch_compliance, np.array(cloth.control.stretch_compliance))
+    with pytest.raises(ValueError, match="stretch"):
+        RecoverOptions.from_config(stretch="panel")
+    cloth.set_control(rest=rest_keep, stretch_compliance=c_keep)
+    cloth.reset(x_keep)
