@@ -6,12 +6,11 @@ noise floor; how fast the distance grows with |d| is the information the data ho
 bending when nothing else is wrong. Prints JSON per case. Not a test.
 
 Run: `.venv/bin/python bench/bending_information.py [--templates skirt,tshirt] [--cases 3]`."""
-import argparse
-import json
 import time
 
 import numpy as np
 
+from _case_grid import run_grid
 from diffavatar_core.metrics import chamfer_meshes
 from diffavatar_core.pipeline.synthetic import drape_truth, make_case
 from diffavatar_core.scan import load_scan
@@ -39,17 +38,7 @@ def case_row(template: str, seed: int, bend: float) -> dict:
 
 
 def main():
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--templates", default="skirt,tshirt")
-    ap.add_argument("--cases", type=int, default=3)
-    args = ap.parse_args()
-    rows = []
-    for tpl in args.templates.split(","):
-        for k in range(args.cases):
-            bend = 10 ** (-6 + 2 * k / max(args.cases - 1, 1))   # as bench/recover.py
-            rows.append(case_row(tpl, 100 + k, bend))
-            print(json.dumps(rows[-1]), flush=True)
-    print(json.dumps({"benchmark": "bending_information", "offsets_decades": OFFSETS, "cases": rows}, indent=2))
+    run_grid("bending_information", case_row, {"offsets_decades": OFFSETS})
 
 
 if __name__ == "__main__":

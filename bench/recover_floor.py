@@ -9,11 +9,10 @@ unmodified template's. Not a test: the ratio target of bench/recover.py assumes 
 drape, which a recovery on another triangulation need not reproduce fold for fold.
 
 Run: `.venv/bin/python bench/recover_floor.py [--templates skirt,tshirt] [--cases 3]`."""
-import argparse
-import json
 
 import numpy as np
 
+from _case_grid import run_grid
 from diffavatar_core.body import BodyModel
 from diffavatar_core.metrics import chamfer_meshes
 from diffavatar_core.pattern.cage import build_cage, cage_handles
@@ -87,17 +86,7 @@ def floor_case(template: str, seed: int, bend: float) -> dict:
 
 
 def main():
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--templates", default="skirt,tshirt")
-    ap.add_argument("--cases", type=int, default=3)
-    args = ap.parse_args()
-    rows = []
-    for tpl in args.templates.split(","):
-        for k in range(args.cases):
-            bend = 10 ** (-6 + 2 * k / max(args.cases - 1, 1))   # as bench/recover.py
-            rows.append(floor_case(tpl, 100 + k, bend))
-            print(json.dumps(rows[-1]), flush=True)
-    print(json.dumps({"benchmark": "recover_floor", "cases": rows}, indent=2))
+    run_grid("recover_floor", floor_case)
 
 
 if __name__ == "__main__":

@@ -41,7 +41,7 @@ fi
 
 mkdir -p "$OUT"
 if [ ${#names[@]} -eq 0 ]; then
-  for f in bench/*.py; do names+=("$(basename "$f" .py)"); done
+  for f in bench/*.py; do n=$(basename "$f" .py); [[ $n == _* ]] || names+=("$n"); done   # _*.py: helpers
 fi
 failed=()
 for name in "${names[@]}"; do

@@ -5,17 +5,13 @@ errors."""
 import numpy as np
 import pytest
 
-from diffavatar_core.body import BodyModel
 from diffavatar_core.pattern.cage import build_cage
 from diffavatar_core.pattern.garment import Garment, PanelInfo
 from diffavatar_core.pattern.templates import FIT_MEASUREMENTS, make_template, template_spec
 from diffavatar_core.pipeline import RecoverOptions
 from diffavatar_core.pipeline.coopt import CoOptObjective, co_optimize
 from diffavatar_core.pipeline.measurement_fit import MeasurementMap, fit_measurements, measurement_objective
-from diffavatar_core.sim.cloth import Cloth
-from diffavatar_core.sim.material import ClothMaterial
 
-TRUE_LENGTH = 0.55 * 1.08   # m: the target skirt (the template's is 0.55)
 
 
 @pytest.mark.parametrize("name", sorted(FIT_MEASUREMENTS))
@@ -42,32 +38,12 @@ def test_map_reproduces_the_template_at_other_measurements(name):
     assert abs(area / g.total_area() - 1) > 0.005    # and it did change
 
 
-@pytest.fixture(scope="module")
-def skirt_problem():
-    """A coarse skirt draped on the default body; the scan: the same skirt 8% longer, draped."""
-    model = BodyModel.default()
-    p = model.zero_params()
-    body = (model.pose(p), model.faces)
-    lm = model.landmarks(p)
-
-    def draped(**meas):
-        g = make_template("skirt", landmarks=lm, edge_length=0.07, **meas)
-        c = Cloth(g.rest, g.faces, g.x0, seams=g.seams, groups=g.panel[g.faces[:, 0]],
-                  materials=[ClothMaterial()] * len(g.panels), body=body)
-        c.sew()
-        assert c.drape(max_steps=150, iterations=40, residual_tol=1e-8, refine_iterations=150).converged
-        return g, c
-    g, cloth = draped()
-    gt, cgt = draped(length=TRUE_LENGTH)
-    xg = np.array(cgt.x)
-    return lm, g, cloth, xg[np.unique(gt.faces)], {k: xg[v] for k, v in gt.boundaries.items()}
-
-
 def test_measurement_gradient_matches_central_differences(skirt_problem):
     """dφ/dm = (∂ζ/∂m)ᵀ dφ/dζ (adjoint through the drape, then the outline's Jacobian) against
     central differences of φ(ζ(m)) at a fixed warm start, for the cage and for the 'without
     control cage' parametrization (every rest vertex W ζ(m))."""
-    lm, g, cloth, pts, loops = skirt_problem
+    model, p, g, cloth, pts, loops = skirt_problem
+    lm = model.landmarks(p)
     x_keep, rest_keep = np.array(cloth.x), np.array(cloth.control.rest)
     cage = build_cage(g)
     mm = MeasurementMap("skirt", lm, g, cage)
@@ -91,12 +67,13 @@ def test_measurement_gradient_matches_central_differences(skirt_problem):
     cloth.reset(x_keep)
 
 
-def test_fit_recovers_a_known_length(skirt_problem):
+def test_fit_recovers_a_known_length(skirt_problem, skirt_true_length):
     """From the template (length 0.55 m), the fit against the 8% longer skirt's drape ends with
     the length within 1 cm of the truth (0.594 m), at a lower φ, the cloth at the fitted
     pattern's equilibrium; the other measurements (waist ease, hem width: the truth's are the
     template's) stay within 3 cm of it."""
-    lm, g, cloth, pts, loops = skirt_problem
+    model, p, g, cloth, pts, loops = skirt_problem
+    lm = model.landmarks(p)
     x_keep, rest_keep = np.array(cloth.x), np.array(cloth.control.rest)
     cage = build_cage(g)
     mm = MeasurementMap("skirt", lm, g, cage)
@@ -106,7 +83,7 @@ def test_fit_recovers_a_known_length(skirt_problem):
     res = fit_measurements(obj, mm, obj.initial_params(), 10, 0.01, on_iteration=seen.append)
     assert res.names == ("length", "waist_ease", "hem_width")
     i = res.names.index("length")
-    assert abs(res.values[i] - TRUE_LENGTH) < 0.01, res.values
+    assert abs(res.values[i] - skirt_true_length) < 0.01, res.values
     assert np.abs(np.delete(res.values - res.values0, i)).max() < 0.03, res.values
     assert res.value < res.value0 and res.iterations >= 1 and len(seen) == res.iterations + 1
     assert np.allclose(res.handles, mm.handles(res.values))
@@ -135,11 +112,12 @@ def test_bad_inputs_name_the_problem():
         o.with_(step_sizes=type(o.step_sizes)(measurements=0.0))
 
 
-def test_co_optimize_runs_the_fit_first(skirt_problem):
+def test_co_optimize_runs_the_fit_first(skirt_problem, skirt_true_length):
     """co_optimize with a measurement map: the fit's iterations open the history (stage
     'measurements'), the co-optimization's follow, numbered on without a repeated start; the
     co-optimization's first pattern is the fitted outline."""
-    lm, g, cloth, pts, loops = skirt_problem
+    model, p, g, cloth, pts, loops = skirt_problem
+    lm = model.landmarks(p)
     x_keep, rest_keep = np.array(cloth.x), np.array(cloth.control.rest)
     cage = build_cage(g)
     mm = MeasurementMap("skirt", lm, g, cage)
@@ -156,6 +134,6 @@ def test_co_optimize_runs_the_fit_first(skirt_problem):
     assert all("stage" not in h for h in res.history[n_fit:]) and len(res.history) == n_fit + res.iterations
     assert [h["iteration"] for h in res.history] == list(range(len(res.history)))
     np.testing.assert_allclose(starts[n_fit - 1], cage.rest(fit.handles), atol=1e-12)
-    assert abs(fit.values[0] - TRUE_LENGTH) < abs(fit.values0[0] - TRUE_LENGTH)
+    assert abs(fit.values[0] - skirt_true_length) < abs(fit.values0[0] - skirt_true_length)
     cloth.set_control(rest=rest_keep)
     cloth.reset(x_keep)

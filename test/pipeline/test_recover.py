@@ -8,39 +8,13 @@ import numpy as np
 import pytest
 
 import diffavatar_core as dc
-from diffavatar_core.body import BodyModel
 from diffavatar_core.pattern.cage import build_cage
-from diffavatar_core.pattern.templates import make_template
 from diffavatar_core.pipeline import RecoverOptions, RecoveryError, recover
 from diffavatar_core.pipeline.coopt import CoOptObjective
 from diffavatar_core.pipeline.output import write_result
 from diffavatar_core.demo import SAMPLE, TRUTH
 from diffavatar_core.scan import ImplausibleSizeError, LabelError, NoGarmentError, NonFiniteError, ScanError
-from diffavatar_core.sim.cloth import Cloth
 from diffavatar_core.sim.material import ClothMaterial
-
-
-@pytest.fixture(scope="module")
-def skirt_problem():
-    """A coarse skirt draped on the default body and a target: the same skirt 8% longer."""
-    model = BodyModel.default()
-    p = model.zero_params()
-    body = (model.pose(p), model.faces)
-    lm = model.landmarks(p)
-    g = make_template("skirt", landmarks=lm, edge_length=0.07)
-    cloth = Cloth(g.rest, g.faces, g.x0, seams=g.seams, groups=g.panel[g.faces[:, 0]],
-                  materials=[ClothMaterial()] * len(g.panels), body=body)
-    cloth.sew()
-    assert cloth.drape(max_steps=150, iterations=40, residual_tol=1e-8, refine_iterations=150).converged
-    gt = make_template("skirt", landmarks=lm, edge_length=0.07, length=0.55 * 1.08)
-    cgt = Cloth(gt.rest, gt.faces, gt.x0, seams=gt.seams, groups=gt.panel[gt.faces[:, 0]],
-                materials=[ClothMaterial()] * len(gt.panels), body=body)
-    cgt.sew()
-    assert cgt.drape(max_steps=150, iterations=40, residual_tol=1e-8, refine_iterations=150).converged
-    xg = np.array(cgt.x)
-    scan_loops = {k: xg[v] for k, v in gt.boundaries.items()}
-    scan_points = xg[np.unique(gt.faces)]
-    return model, p, g, cloth, scan_points, scan_loops
 
 
 def test_objective_gradient_matches_central_differences(skirt_problem):
