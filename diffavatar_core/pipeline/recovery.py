@@ -42,6 +42,7 @@ from .result import BodyAssets, MaterialAssets, RecoveryResult
 STAGES = ("preprocess", "body", "drape", "optimize", "refine", "metrics")
 # garment class → built-in template when the type names a class or a synonym (config/labels.yaml)
 CLASS_TEMPLATE = {"upper": "tshirt", "dress": "dress", "skirt": "skirt", "pants": "pants"}
+SELF_ANCHOR_TOL = 1e-4      # m: the output drape re-anchored at itself until it moves less (Cloth.self_anchor)
 OUTPUT_SWEEPS = 100         # XPBD sweeps per step of the fine output drape (as `diffavatar drape`)
 MIN_BODY_FRACTION = 0.2    # of the scan's vertices, for a body fit to the body-labelled points
 
@@ -131,12 +132,13 @@ def _assets_drape(g, co, material, body_vertices, body_faces, opts, cancel):
     pattern — whose masses are those of its own rest areas; the optimizer's cloth keeps the
     template's (a Cloth's model is built once; set_control changes the elastic rest shape) —
     and re-anchored at itself until it stays put (Cloth.self_anchor): the equilibrium of the
-    written assets, which reloaded do not move. None when it does not re-solve."""
+    written assets, which reloaded do not move. Returns (drape or None when no round
+    re-solved, the last round's largest move m)."""
     cloth = Cloth(co.rest, g.faces, co.x, seams=g.seams, groups=g.panel[g.faces[:, 0]],
                   materials=[material] * len(g.panels), body=(body_vertices, body_faces), grain=g.face_grain())
     cloth.set_control(bend_stiffness=np.asarray(co.bend_stiffness, float))
-    move = cloth.self_anchor(opts.residual_tol, cancel=cancel)
-    return np.array(cloth.x) if np.isfinite(move) else None
+    move = cloth.self_anchor(opts.residual_tol, tol=SELF_ANCHOR_TOL, cancel=cancel)
+    return (np.array(cloth.x) if np.isfinite(move) else None), move
 
 
 def _body_assets(model: BodyModel, p) -> BodyAssets:
@@ -180,7 +182,8 @@ def recover(scan, options=None, run_control=None, *, progress=None, cancel=None,
     full = body_mask.mean() >= MIN_BODY_FRACTION
     pts = data.vertices[body_mask] if full else Vg_scan
     fit = fit_body(pts, None, model, garment_only=not full,
-                   garment_type=None if full else (data.garment_type or data.garment_class))
+                   garment_type=None if full else (data.garment_type or data.garment_class),
+                   occluders=Vg_scan if full else None)   # the body under the garment is unseen
     ctl.check("body")
     body_params = fit.params
     body_vertices = model.pose(body_params)
@@ -262,12 +265,15 @@ def recover(scan, options=None, run_control=None, *, progress=None, cancel=None,
                 warnings.append(f"the fine output mesh (edge {fine_edge} m) did not settle ({exc}); "
                                 f"the optimized mesh (edge {opts.edge_length} m) is returned")
     if g_out is g:   # the optimized mesh is the output
-        x_assets = _assets_drape(g, co, material, body_final, model.faces, opts, ctl.token)
+        x_assets, move = _assets_drape(g, co, material, body_final, model.faces, opts, ctl.token)
         if x_assets is None:
             warnings.append("the recovered drape did not re-solve with the recovered pattern's own masses; the "
                             "optimizer's drape (template masses) is returned")
         else:
             x_out = x_assets
+            if move > SELF_ANCHOR_TOL:
+                warnings.append(f"the recovered drape still moved {1e3 * move:.2f} mm in its last re-anchoring "
+                                f"(Cloth.self_anchor): reloaded, the assets may settle by about that much")
 
     # result ------------------------------------------------------------------------------------
     ctl.report("metrics")

@@ -348,7 +348,7 @@ class Cloth:
             its, pen = its + k, float(self.solver.max_penetration(self.x))
         return its, res, pen
 
-    def self_anchor(self, residual_tol: float, rounds: int = 3, tol: float = 1e-4, refine_iterations: int = 120,
+    def self_anchor(self, residual_tol: float, rounds: int = 10, tol: float = 1e-4, refine_iterations: int = 120,
                     cancel=None) -> float:
         """Re-solves the equilibrium with the static-friction anchors (κ = 1/s²) moved to the
         current state, until the state stays put (no vertex moves more than tol, m; `rounds` at
@@ -356,7 +356,9 @@ class Cloth:
         control started there does not leave (a drape anchored elsewhere — an optimizer's warm
         start — moves by up to its distance from it). A round that misses residual_tol or ends
         in the body (deeper than 10% of the thickness) is undone and ends the rounds. Returns
-        the last completed round's largest move (m; inf if none completed)."""
+        the last completed round's largest move (m; inf if none completed). Usually geometric
+        (the sample skirt: 2.6 → 0.12 → 0.001 mm), but a cloth that slides takes more rounds
+        (5.4, 1.9, 1.1, 1.0, 1.9, 0.25 mm, then < 0.01 mm: 7 rounds)."""
         move = float("inf")
         for _ in range(max(int(rounds), 0)):
             x0 = np.array(self.x)
