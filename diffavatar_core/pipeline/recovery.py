@@ -42,6 +42,7 @@ from .result import BodyAssets, MaterialAssets, RecoveryResult
 STAGES = ("preprocess", "body", "drape", "optimize", "refine", "metrics")
 # garment class → built-in template when the type names a class or a synonym (config/labels.yaml)
 CLASS_TEMPLATE = {"upper": "tshirt", "dress": "dress", "skirt": "skirt", "pants": "pants"}
+LONG_SLEEVE_REACH = 0.95    # sleeve_reach above this: long sleeves (between the t-shirt's ~0.65 and the longsleeve's ~1.3)
 SELF_ANCHOR_TOL = 1e-4      # m: the output drape re-anchored at itself until it moves less (Cloth.self_anchor)
 OUTPUT_SWEEPS = 100         # XPBD sweeps per step of the fine output drape (as `diffavatar drape`)
 MIN_BODY_FRACTION = 0.2    # of the scan's vertices, for a body fit to the body-labelled points
@@ -78,15 +79,37 @@ class _Control:
         self.check(stage)
 
 
-def select_template(scan: ScanData, opts: RecoverOptions) -> str:
+def sleeve_reach(boundaries: dict, lm) -> float | None:
+    """Mean position of the scan's sleeve openings along the arm: each opening's centroid
+    projected on its nearer shoulder → wrist segment, as a fraction of it (0 at the shoulder
+    tip, 1 at the wrist); None without sleeve openings. Benchmark scans: t-shirts 0.65–0.68,
+    long sleeves 1.23–1.37 (the cuff hangs past the wrist joint)."""
+    arms = ((lm.shoulder_left, lm.wrist_left), (lm.shoulder_right, lm.wrist_right))
+    fs = []
+    for name, P in boundaries.items():
+        if not name.startswith("sleeve") or not len(P):
+            continue
+        c = np.asarray(P, float).mean(axis=0)
+        s, w = min(arms, key=lambda a: float(np.linalg.norm(c - a[0])))
+        fs.append(float(np.dot(c - s, w - s) / np.dot(w - s, w - s)))
+    return float(np.mean(fs)) if fs else None
+
+
+def select_template(scan: ScanData, opts: RecoverOptions, landmarks=None) -> str:
     """The built-in template for the scan's garment: its type when that names a template,
-    otherwise the class's default (upper → tshirt, dress, skirt, pants)."""
+    otherwise the class's default (upper → tshirt, dress, skirt, pants) — an upper garment
+    whose sleeve openings reach past LONG_SLEEVE_REACH of the arm (sleeve_reach, with the
+    fitted body's landmarks) → longsleeve."""
     if scan.garment_type and scan.garment_type in TEMPLATES:
         return scan.garment_type
     name = CLASS_TEMPLATE.get(scan.garment_class)
     if name not in TEMPLATES:
         raise RecoveryError(f"no built-in template for a '{scan.garment_class}' garment (built-ins: "
                             f"{', '.join(sorted(TEMPLATES))}); give one with --template FILE")
+    if name == "tshirt" and landmarks is not None:
+        reach = sleeve_reach(scan.boundaries, landmarks)
+        if reach is not None and reach > LONG_SLEEVE_REACH:
+            return "longsleeve"
     return name
 
 
@@ -203,7 +226,7 @@ def recover(scan, options=None, run_control=None, *, progress=None, cancel=None,
         else:
             g = _load_template_file(template, opts.edge_length, body_vertices)
     else:
-        template_name = select_template(data, opts)
+        template_name = select_template(data, opts, lm)
         remake = partial(make_template, template_name, landmarks=lm)
     if remake is not None:
         g = remake(edge_length=opts.edge_length)
@@ -315,4 +338,4 @@ def recover(scan, options=None, run_control=None, *, progress=None, cancel=None,
     return result
 
 
-__all__ = ["recover", "RecoveryError", "select_template", "STAGES", "ScanError"]
+__all__ = ["recover", "RecoveryError", "select_template", "sleeve_reach", "STAGES", "ScanError"]

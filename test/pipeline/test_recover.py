@@ -420,3 +420,26 @@ def test_stretch_compliance_gradient_and_result(skirt_problem):
         RecoverOptions.from_config(stretch="panel")
     cloth.set_control(rest=rest_keep, stretch_compliance=c_keep)
     cloth.reset(x_keep)
+
+
+def test_upper_garment_template_follows_the_sleeve_length():
+    """An upper garment without a named type gets the t-shirt, or the long-sleeved top when its
+    sleeve openings reach past 0.95 of the shoulder → wrist segment (sleeve_reach: projected
+    opening centroids; a named type always wins)."""
+    from types import SimpleNamespace
+    from diffavatar_core.pattern.templates import default_landmarks
+    from diffavatar_core.pipeline.recovery import select_template, sleeve_reach
+    lm = default_landmarks()
+    opts = RecoverOptions.from_config()
+    ring = 0.03 * np.array([[np.cos(a), 0.0, np.sin(a)] for a in np.linspace(0, 2 * np.pi, 12, endpoint=False)])
+
+    def scan(reach, garment_type=None):
+        loops = {f"sleeve_{side}": s + reach * (w - s) + ring
+                 for side, s, w in (("left", lm.shoulder_left, lm.wrist_left), ("right", lm.shoulder_right, lm.wrist_right))}
+        return SimpleNamespace(garment_type=garment_type, garment_class="upper", boundaries={"hem": ring, **loops})
+    assert abs(sleeve_reach(scan(0.65).boundaries, lm) - 0.65) < 1e-12
+    assert select_template(scan(0.65), opts, lm) == "tshirt"
+    assert select_template(scan(1.3), opts, lm) == "longsleeve"
+    assert select_template(scan(1.3), opts) == "tshirt"                       # no landmarks: the class default
+    assert select_template(scan(1.3, garment_type="tshirt"), opts, lm) == "tshirt"
+    assert sleeve_reach({"hem": ring}, lm) is None
