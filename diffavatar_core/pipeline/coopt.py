@@ -331,8 +331,7 @@ def co_optimize(cloth, garment, scan_points, scan_loops: dict, opts: RecoverOpti
         except (ValueError, FloatingPointError):   # not evaluable at the template: the co-optimization decides
             history = []
         if fit is not None:
-            zeta = fit.handles if cage is not None else measurement_map.cage.rest(fit.handles)
-            params["handles"] = zeta.reshape(-1).copy()
+            params["handles"] = measurement_map.parameters(fit.handles, vertices=cage is None).copy()
             base = fit.iterations
     if fit is not None and fit.stopped == "cancelled":
         best, it, rej, stopped, kept, gkept = params, 0, 0, "cancelled", 0, 0

@@ -70,6 +70,11 @@ class MeasurementMap:
                              f"({', '.join(self.names)}), got {values}")
         return self._on_outline(values) + self.offset
 
+    def parameters(self, zeta, vertices: bool) -> np.ndarray:
+        """The co-optimization's 'handles' parameter vector for handles zeta (H, 2) m: zeta itself,
+        or with the 'without control cage' parametrization (vertices) every rest vertex, W zeta."""
+        return (self.cage.rest(zeta) if vertices else np.asarray(zeta, float)).reshape(-1)
+
     def jacobian(self, values, step: float = FD_STEP) -> np.ndarray:
         """(H·2, M) ∂ζ/∂m by central differences."""
         values = np.asarray(values, float).reshape(-1)
@@ -104,8 +109,7 @@ def measurement_objective(obj, mmap: MeasurementMap, held: dict, values):
     the other parameter groups `held` (a parameter dict without 'handles'). With obj's
     'without control cage' parametrization the rest vertices are W ζ(values)."""
     vertices = obj.cage is None
-    zeta = mmap.handles(values)
-    value, grads, terms = obj({"handles": (mmap.cage.rest(zeta) if vertices else zeta).reshape(-1), **held})
+    value, grads, terms = obj({"handles": mmap.parameters(mmap.handles(values), vertices), **held})
     gz = grads["handles"]
     if vertices:   # dφ/dζ = Wᵀ dφ/dx̄ (Eq. 5)
         gz = mmap.cage.grad_zeta(gz.reshape(-1, 2))

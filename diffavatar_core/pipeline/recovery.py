@@ -128,6 +128,18 @@ def _load_template_file(path, edge_length: float, body_vertices: np.ndarray) -> 
     return g
 
 
+def _garment_cloth(g: Garment, rest, x, material, body, bend_stiffness=None) -> Cloth:
+    """A Cloth of garment g's mesh, seams, panels and grain at rest shape `rest` (V, 2) m and
+    state x (V, 3) m, one material for every panel, on body (V, F); bend_stiffness (G,) N·m
+    replaces the material's. Built on `rest` because the masses are the model's, from the
+    constructor's rest areas (set_control(rest=...) would keep another pattern's)."""
+    cloth = Cloth(rest, g.faces, x, seams=g.seams, groups=g.panel[g.faces[:, 0]],
+                  materials=[material] * len(g.panels), body=body, grain=g.face_grain())
+    if bend_stiffness is not None:
+        cloth.set_control(bend_stiffness=np.asarray(bend_stiffness, float))
+    return cloth
+
+
 def _fine_output(g, cage, co, fine: Garment, material, body_vertices, body_faces, opts, cancel):
     """(fine garment, its rest (V, 2) m, its drape (V, 3) m, the drape's SettleResult) for the
     co-optimization's result: the pattern carried through the cage, warm-started from the coarse
@@ -138,10 +150,7 @@ def _fine_output(g, cage, co, fine: Garment, material, body_vertices, body_faces
     differentiated here. Raises ValueError when the cloth does not settle."""
     rest = transfer_pattern(g, cage, co.rest[cage.handles], fine)   # MVC interpolate: ζ = x̄[handles]
     x0 = transfer_positions(g, co.x, fine)
-    # built on the recovered rest: the masses are the model's, from the constructor's rest areas
-    cloth = Cloth(rest, fine.faces, x0, seams=fine.seams, groups=fine.panel[fine.faces[:, 0]],
-                  materials=[material] * len(fine.panels), body=(body_vertices, body_faces), grain=fine.face_grain())
-    cloth.set_control(bend_stiffness=np.asarray(co.bend_stiffness, float))
+    cloth = _garment_cloth(fine, rest, x0, material, (body_vertices, body_faces), co.bend_stiffness)
     cloth.reset(push_outside(x0, body_vertices, body_faces, float(cloth.model.thickness)))
     s = cloth.settle(max_steps=opts.output_drape_steps, displacement_tol=opts.output_settle_tol,
                      iterations=OUTPUT_SWEEPS, substeps=SUBSTEPS, fast=True, cancel=cancel)
@@ -157,9 +166,7 @@ def _assets_drape(g, co, material, body_vertices, body_faces, opts, cancel):
     and re-anchored at itself until it stays put (Cloth.self_anchor): the equilibrium of the
     written assets, which reloaded do not move. Returns (drape or None when no round
     re-solved, the last round's largest move m)."""
-    cloth = Cloth(co.rest, g.faces, co.x, seams=g.seams, groups=g.panel[g.faces[:, 0]],
-                  materials=[material] * len(g.panels), body=(body_vertices, body_faces), grain=g.face_grain())
-    cloth.set_control(bend_stiffness=np.asarray(co.bend_stiffness, float))
+    cloth = _garment_cloth(g, co.rest, co.x, material, (body_vertices, body_faces), co.bend_stiffness)
     move = cloth.self_anchor(opts.residual_tol, tol=SELF_ANCHOR_TOL, cancel=cancel)
     return (np.array(cloth.x) if np.isfinite(move) else None), move
 
@@ -231,8 +238,7 @@ def recover(scan, options=None, run_control=None, *, progress=None, cancel=None,
     if remake is not None:
         g = remake(edge_length=opts.edge_length)
     material = ClothMaterial(bend_stiffness=opts.bend_stiffness)
-    cloth = Cloth(g.rest, g.faces, g.x0, seams=g.seams, groups=g.panel[g.faces[:, 0]],
-                  materials=[material] * len(g.panels), body=(body_vertices, model.faces), grain=g.face_grain())
+    cloth = _garment_cloth(g, g.rest, g.x0, material, (body_vertices, model.faces))
     cloth.sew(cancel=ctl.token)
     r = cloth.drape(max_steps=max(opts.drape_steps, 1), iterations=opts.drape_iterations,
                     residual_tol=opts.residual_tol, refine_iterations=120, raise_on_divergence=False,
