@@ -21,14 +21,18 @@ the default is diffavatar_core.pipeline.recover, imported when the first job run
 """
 from __future__ import annotations
 
+import faulthandler
 import json
 import math
 import os
 import pathlib
+import signal
 import threading
 import time
 
 LARGE_DATA_ENV = "FASTDDS_BUILTIN_TRANSPORTS"
+EXIT_GRACE_S = 20.0   # s from a stop signal to the end of the process, at most
+SPIN_PERIOD_S = 0.1   # s between two checks for a stop signal
 
 
 def configure_large_data_transport() -> str:
@@ -52,6 +56,7 @@ from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallb
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor  # noqa: E402
 from rclpy.node import Node  # noqa: E402
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
+from rclpy.signals import SignalHandlerOptions  # noqa: E402
 from std_msgs.msg import String  # noqa: E402
 
 import diffavatar_core as dc  # noqa: E402
@@ -395,10 +400,34 @@ class DiffAvatarNode(Node):
         super().destroy_node()
 
 
+def shutdown_executor(executor, spin_thread: threading.Thread | None = None, timeout: float = 10.0) -> None:
+    """Stops `executor`, waits up to `timeout` s for `spin_thread` (the thread spinning it, if not
+    the caller) to leave its loop, then joins the executor's worker threads. rclpy's
+    MultiThreadedExecutor.shutdown() leaves its thread pool running in this Jazzy (rclpy#893;
+    fixed upstream in #1309, backported as #1670): a worker left waiting kept the process from
+    exiting after SIGINT (seen here in 6 of 70 runs of the entry-point test). The pool is closed
+    only once nothing spins the executor, so no callback is submitted to a closed pool
+    (rclpy#1724)."""
+    executor.shutdown()
+    if spin_thread is not None:
+        spin_thread.join(timeout)
+    pool = getattr(executor, "_executor", None)   # the ThreadPoolExecutor of MultiThreadedExecutor
+    if pool is not None:
+        pool.shutdown(wait=True)
+
+
 def main(args=None):
-    """Console entry `diffavatar-node` / `python -m diffavatar_ros` (accepts --ros-args)."""
+    """Console entry `diffavatar-node` / `python -m diffavatar_ros` (accepts --ros-args).
+
+    SIGINT and SIGTERM stop the spin loop (within SPIN_PERIOD_S); the node, the executor and its
+    threads, then the context are shut down in that order, by this thread. rclpy's own signal
+    handlers are off: they shut the context down under a spinning executor, a race this order
+    avoids."""
     configure_large_data_transport()
-    rclpy.init(args=args)
+    stop = threading.Event()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda *_: stop.set())
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     try:
         node = DiffAvatarNode()
     except Exception as exc:  # a bad --params-file value: say so and exit non-zero
@@ -408,16 +437,17 @@ def main(args=None):
     executor = MultiThreadedExecutor(num_threads=4)
     executor.add_node(node)
     try:
-        executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
+        while not stop.is_set() and node.context.ok():
+            executor.spin_once(timeout_sec=SPIN_PERIOD_S)
+    except ExternalShutdownException:   # the context was shut down by someone else
         pass
-    except Exception:
-        # SIGINT shuts the context down; an executor caught between two waits then fails to
-        # build its wait set on the dead context: that is the shutdown, not an error
-        if node.context.ok():
-            raise
     finally:
+        # From here the process must end: if a step below, a thread or the middleware's
+        # teardown at interpreter exit hangs, every thread's stack goes to stderr after
+        # EXIT_GRACE_S and the process exits with status 1 (a supervisor sees the failure).
+        faulthandler.dump_traceback_later(EXIT_GRACE_S, exit=True)
         node.destroy_node()
+        shutdown_executor(executor)
         rclpy.try_shutdown()
 
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import os
 import pathlib
+import signal
 import subprocess
 import sys
 import threading
@@ -25,7 +26,8 @@ from diffavatar_core.scan import ScanError, check_scan, load_scan, scan_from_arr
 from diffavatar_msgs.action import OptimizeAvatar
 from diffavatar_msgs.msg import AvatarAssets, OptimizationProgress, SegmentedScan
 from diffavatar_ros import convert
-from diffavatar_ros.node import (LARGE_DATA_ENV, PROGRESS_QOS, SCAN_QOS, DiffAvatarNode, result_qos)
+from diffavatar_ros.node import (LARGE_DATA_ENV, PROGRESS_QOS, SCAN_QOS, DiffAvatarNode, result_qos,
+                                 shutdown_executor)
 from service_helpers import SphereFitRunner, grid_sphere, small_scan
 
 HERE = pathlib.Path(__file__).resolve().parent
@@ -51,7 +53,7 @@ class Service:
 
     def close(self):
         self.node.destroy_node()
-        self.executor.shutdown()
+        shutdown_executor(self.executor, self.thread)
 
 
 class Client:
@@ -546,10 +548,33 @@ def test_200k_vertex_scan_from_another_process_arrives_intact(ros_domain, ros_co
         svc.close()
 
 
-def test_entry_point_runs_the_node_in_its_own_process(ros_domain, ros_context, tmp_path):
+def test_shutdown_executor_leaves_no_worker_threads(ros_context):
+    """rclpy's MultiThreadedExecutor.shutdown() alone leaves its pool's workers alive (rclpy#893;
+    spun from the main thread, as main() does, they are not daemons and can keep a stopped node's
+    process from exiting); shutdown_executor ends them."""
+    node = rclpy.create_node("pool_probe", context=ros_context)
+    ticks = threading.Semaphore(0)
+    node.create_timer(0.001, ticks.release)
+    ex = MultiThreadedExecutor(num_threads=3, context=ros_context)
+    ex.add_node(node)
+    spin = _spin_in_thread(ex)
+    try:
+        for _ in range(20):   # callbacks ran on the pool, so its workers exist
+            assert ticks.acquire(timeout=10)
+        pool = {t for t in ex._executor._threads if t.is_alive()}
+        assert pool
+    finally:
+        node.destroy_node()
+        shutdown_executor(ex, spin)
+    assert not spin.is_alive()
+    assert not any(t.is_alive() for t in pool)
+
+
+@pytest.mark.parametrize("stop_signal", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_entry_point_runs_the_node_in_its_own_process(ros_domain, ros_context, tmp_path, stop_signal):
     """`python -m diffavatar_ros --ros-args --params-file F` as a real second process: it loads
-    the parameters, answers a bad scan with its error, and exits cleanly on SIGINT."""
-    import signal
+    the parameters, answers a bad scan with its error, and exits cleanly (status 0)
+    on SIGINT and on SIGTERM (what launch and systemd send)."""
     params = tmp_path / "node.yaml"
     params.write_text(f"/**:\n  ros__parameters:\n    queue_length: 5\n    output_dir: {tmp_path / 'o'}\n")
     env = {**os.environ, "ROS_DOMAIN_ID": str(ros_domain)}
@@ -570,8 +595,14 @@ def test_entry_point_runs_the_node_in_its_own_process(ros_domain, ros_context, t
         assert (tmp_path / "o" / "remote-bad" / "error.json").exists()
     finally:
         cli.close()
-        proc.send_signal(signal.SIGINT)
-        out = proc.communicate(timeout=20)[0]
+        proc.send_signal(stop_signal)
+        try:
+            out = proc.communicate(timeout=30)[0]   # the node ends itself after EXIT_GRACE_S = 20 s
+        except subprocess.TimeoutExpired:
+            # never leave a hung peer behind: this process's DDS teardown would wait on it
+            proc.kill()
+            out = proc.communicate()[0]
+            pytest.fail(f"the node did not exit within 30 s of {stop_signal.name}:\n{out}")
     assert proc.returncode == 0, out
     assert "FASTDDS_BUILTIN_TRANSPORTS=LARGE_DATA" in out
 

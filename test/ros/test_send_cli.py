@@ -6,13 +6,14 @@ import os
 import pathlib
 import subprocess
 import sys
+import threading
 
 import numpy as np
 from rclpy.executors import MultiThreadedExecutor
 from rclpy.parameter import Parameter
 
 from diffavatar_core.io import load_mesh, save_mesh
-from diffavatar_ros.node import DiffAvatarNode
+from diffavatar_ros.node import DiffAvatarNode, shutdown_executor
 from service_helpers import SphereFitRunner, small_scan
 
 
@@ -44,8 +45,8 @@ def test_send_batch_directory_and_action(ros_domain, ros_context, tmp_path):
                           parameter_overrides=[Parameter("output_dir", value=str(tmp_path / "node_out"))])
     ex = MultiThreadedExecutor(num_threads=4, context=ros_context)
     ex.add_node(node)
-    import threading
-    threading.Thread(target=ex.spin, daemon=True).start()
+    spin = threading.Thread(target=ex.spin, daemon=True)
+    spin.start()
     try:
         out = tmp_path / "client_out"
         proc = _send(ros_domain, batch, "--label-names", "body,tshirt", "--iterations", 3, "--out", out)
@@ -81,7 +82,7 @@ def test_send_batch_directory_and_action(ros_domain, ros_context, tmp_path):
         np.testing.assert_allclose(runner.scans[-1].vertices, V, atol=1e-6)  # converted to m, Y up
     finally:
         node.destroy_node()
-        ex.shutdown()
+        shutdown_executor(ex, spin)
 
 
 def test_send_without_a_node_says_so(ros_domain, tmp_path):
