@@ -30,8 +30,8 @@ from diffavatar_core.pipeline.synthetic import make_case
 
 VARIANTS = ("full", "no_cage", "no_seam", "no_curvature")
 # not ablations of the paper: the reference runs of the L-BFGS metric before the H¹ one, of the recovery without
-# scan-guided drapes and without the template measurement fit
-EXTRA_VARIANTS = ("euclidean", "unguided", "no_measurement_fit")
+# scan-guided drapes, without the template measurement fit, and with the template's masses throughout
+EXTRA_VARIANTS = ("euclidean", "unguided", "no_measurement_fit", "fixed_masses")
 
 
 def corner_edge_lengths(g, corners_from=None) -> list:
@@ -75,6 +75,8 @@ def options_for(variant, iterations, output_edge=0.0):
         return o.with_(guided_stiffness=0.0)
     if variant == "no_measurement_fit":
         return o.with_(measurement_fit_iterations=0)
+    if variant == "fixed_masses":
+        return o.with_(masses_follow_rest=False)
     if variant != "full":
         raise ValueError(f"unknown variant {variant!r}: one of {VARIANTS + EXTRA_VARIANTS}")
     return o

@@ -62,6 +62,7 @@ class RecoverOptions:
     length_measure: str = "raw"
     fresh_every: int = 5
     measurement_fit_iterations: int = 10
+    masses_follow_rest: bool = True
     guided_stiffness: float = 1.0e4
     guided_capture: float = 0.03
     length_tolerance_pct: float = 2.0
@@ -103,8 +104,9 @@ class RecoverOptions:
         if self.measurement_fit_iterations and not self.step_sizes.measurements > 0:
             raise ValueError("recover options: step_sizes.measurements must be positive when "
                              f"measurement_fit_iterations is {self.measurement_fit_iterations}")
-        if not isinstance(self.optimize_body, bool):
-            bad("optimize_body", "must be true or false")
+        for name in ("optimize_body", "masses_follow_rest"):
+            if not isinstance(getattr(self, name), bool):
+                bad(name, "must be true or false")
         if self.output_drape_steps < 1:
             bad("output_drape_steps", "must be at least 1")
         if not 0.005 <= self.edge_length <= 0.2:

@@ -128,13 +128,15 @@ def _load_template_file(path, edge_length: float, body_vertices: np.ndarray) -> 
     return g
 
 
-def _garment_cloth(g: Garment, rest, x, material, body, bend_stiffness=None) -> Cloth:
+def _garment_cloth(g: Garment, rest, x, material, body, bend_stiffness=None, masses_follow_rest=True) -> Cloth:
     """A Cloth of garment g's mesh, seams, panels and grain at rest shape `rest` (V, 2) m and
     state x (V, 3) m, one material for every panel, on body (V, F); bend_stiffness (G,) N·m
-    replaces the material's. Built on `rest` because the masses are the model's, from the
-    constructor's rest areas (set_control(rest=...) would keep another pattern's)."""
+    replaces the material's. Its masses follow the rest shape (masses_follow_rest): every
+    pattern the optimizer tries weighs what its area does, and the equilibrium adjoint
+    differentiates that; with False they stay those of `rest`."""
     cloth = Cloth(rest, g.faces, x, seams=g.seams, groups=g.panel[g.faces[:, 0]],
-                  materials=[material] * len(g.panels), body=body, grain=g.face_grain())
+                  materials=[material] * len(g.panels), body=body, grain=g.face_grain(),
+                  masses_follow_rest=masses_follow_rest)
     if bend_stiffness is not None:
         cloth.set_control(bend_stiffness=np.asarray(bend_stiffness, float))
     return cloth
@@ -160,12 +162,11 @@ def _fine_output(g, cage, co, fine: Garment, material, body_vertices, body_faces
 
 
 def _assets_drape(g, co, material, body_vertices, body_faces, opts, cancel):
-    """(V, 3) m: the co-optimization's drape re-solved on a Cloth built from the recovered
-    pattern — whose masses are those of its own rest areas; the optimizer's cloth keeps the
-    template's (a Cloth's model is built once; set_control changes the elastic rest shape) —
-    and re-anchored at itself until it stays put (Cloth.self_anchor): the equilibrium of the
-    written assets, which reloaded do not move. Returns (drape or None when no round
-    re-solved, the last round's largest move m)."""
+    """(V, 3) m: the co-optimization's drape re-solved on a Cloth of the recovered pattern and
+    re-anchored at itself until it stays put (Cloth.self_anchor). The optimizer's equilibria
+    hold anchor springs (the refinement's static-friction proxy, the scan guidance); this is
+    the equilibrium of the written assets alone, which reloaded do not move. Returns (drape or
+    None when no round re-solved, the last round's largest move m)."""
     cloth = _garment_cloth(g, co.rest, co.x, material, (body_vertices, body_faces), co.bend_stiffness)
     move = cloth.self_anchor(opts.residual_tol, tol=SELF_ANCHOR_TOL, cancel=cancel)
     return (np.array(cloth.x) if np.isfinite(move) else None), move
@@ -238,7 +239,8 @@ def recover(scan, options=None, run_control=None, *, progress=None, cancel=None,
     if remake is not None:
         g = remake(edge_length=opts.edge_length)
     material = ClothMaterial(bend_stiffness=opts.bend_stiffness)
-    cloth = _garment_cloth(g, g.rest, g.x0, material, (body_vertices, model.faces))
+    cloth = _garment_cloth(g, g.rest, g.x0, material, (body_vertices, model.faces),
+                           masses_follow_rest=opts.masses_follow_rest)
     cloth.sew(cancel=ctl.token)
     r = cloth.drape(max_steps=max(opts.drape_steps, 1), iterations=opts.drape_iterations,
                     residual_tol=opts.residual_tol, refine_iterations=120, raise_on_divergence=False,
@@ -296,8 +298,8 @@ def recover(scan, options=None, run_control=None, *, progress=None, cancel=None,
     if g_out is g:   # the optimized mesh is the output
         x_assets, move = _assets_drape(g, co, material, body_final, model.faces, opts, ctl.token)
         if x_assets is None:
-            warnings.append("the recovered drape did not re-solve with the recovered pattern's own masses; the "
-                            "optimizer's drape (template masses) is returned")
+            warnings.append("the recovered drape did not re-solve without the optimizer's anchor springs; the "
+                            "optimizer's (anchored) drape is returned")
         else:
             x_out = x_assets
             if move > SELF_ANCHOR_TOL:

@@ -83,13 +83,16 @@ class Cloth:
     group (density from the first); body: (vertices (Vb,3), faces (Fb,3)) collider or None;
     thickness h (m), contact stiffness (N/m), seam compliance (m/N); grain (F,) the fabric's
     warp direction per triangle, rad counter-clockwise from the pattern x axis (None: 0, warp =
-    pattern x, weft = pattern y; a Garment's is Garment.face_grain()).
+    pattern x, weft = pattern y; a Garment's is Garment.face_grain()); masses_follow_rest: the
+    lumped masses (density × a third of the adjacent rest areas, kg) follow every new rest shape
+    given to set_control instead of staying those of `rest` (what an optimizer of the pattern
+    wants: a larger pattern is heavier).
     """
 
     def __init__(self, rest, faces, x0, seams=None, pinned=None, groups=None,
                  materials: ClothMaterial | list[ClothMaterial] | None = None, body=None,
                  thickness: float = 0.004, contact_stiffness: float = 2.0e3,
-                 seam_compliance: float = 1.0e-5, grain=None):
+                 seam_compliance: float = 1.0e-5, grain=None, masses_follow_rest: bool = False):
         rest = _validate.points("rest", rest, dims=2)
         F = _validate.faces("faces", faces, len(rest))
         x0 = _validate.points("x0", x0)
@@ -124,7 +127,8 @@ class Cloth:
         self.materials = list(materials)
         model = _core.build_cloth_model(len(rest), F, rest, groups, seams, pinned, bF,
                                         materials[0].density, float(thickness),
-                                        float(contact_stiffness), float(seam_compliance), grain)
+                                        float(contact_stiffness), float(seam_compliance), grain,
+                                        bool(masses_follow_rest))
         control = _core.ClothControl(rest, np.array([m.compliance for m in materials]),
                                      np.array([m.bend_stiffness for m in materials]), bV)
         self.solver = _core.XpbdSolver(model, control)
@@ -160,9 +164,11 @@ class Cloth:
         self.solver.set_sweep_plan(p)
 
     def set_control(self, rest=None, stretch_compliance=None, bend_stiffness=None, body_vertices=None):
-        """Changes the optimized parameters (Control). The lumped masses belong to the Model,
-        built once from the constructor's rest areas: a new `rest` changes the elastic rest
-        shape, not the masses (build a new Cloth for the masses of another pattern)."""
+        """Changes the optimized parameters (Control). The lumped masses are the Model's, from
+        the constructor's rest areas: a new `rest` changes the elastic rest shape only — unless
+        the Cloth was built with masses_follow_rest=True, when the masses are recomputed from
+        the new rest areas too (the equilibrium adjoint differentiates them; the trajectory
+        adjoint refuses such a cloth)."""
         c = self.solver.control
         if rest is not None:
             c.rest = _validate.points("rest", rest, dims=2)

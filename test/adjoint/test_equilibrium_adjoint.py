@@ -113,3 +113,66 @@ def test_invariants(scene):
     for key in ("rest", "stretch_compliance", "bend_stiffness", "body_vertices"):
         np.testing.assert_allclose(g3[key], 3.0 * g[key], rtol=1e-9, atol=1e-14)
     assert g["solve_residual"] < 1e-8
+
+
+@pytest.fixture(scope="module")
+def mass_scene():
+    """The scene of `scene`, with masses that follow the rest shape."""
+    mat = ClothMaterial(warp_compliance=2e-2, weft_compliance=3e-2, shear_compliance=5e-2, bend_stiffness=2e-5)
+    cloth = sheet_against_sphere(n=8, materials=mat, contact_stiffness=20.0, masses_follow_rest=True)
+    r = cloth.drape(max_steps=3000, residual_tol=TOL, refine_iterations=200)
+    assert r.converged, r
+    rng = np.random.default_rng(1)
+    return cloth, rng.standard_normal(cloth.x.shape), cloth.x.copy(), cloth.control
+
+
+def test_masses_follow_the_rest_shape(mass_scene):
+    cloth, _, x_star, control = mass_scene
+    m0 = cloth.model.mass.copy()
+    pinned = cloth.model.inv_mass == 0
+    try:
+        cloth.set_control(rest=control.rest * 1.1)
+        # lumped masses scale with the area; their total is ρ × the pattern's area
+        np.testing.assert_allclose(cloth.model.mass, 1.21 * m0, rtol=1e-12)
+        area = 0.2 * 0.2 * 1.21
+        assert cloth.model.mass.sum() == pytest.approx(cloth.model.density * area, rel=1e-12)
+        np.testing.assert_array_equal(cloth.model.inv_mass == 0, pinned)
+        with pytest.raises(ValueError, match="inverted"):   # an inverted rest triangle is refused
+            cloth.set_control(rest=control.rest * [-1.0, 1.0])
+        np.testing.assert_allclose(cloth.model.mass, 1.21 * m0, rtol=1e-12)   # ...and changes nothing
+    finally:
+        cloth.set_control(rest=control.rest)
+        cloth.state.x = x_star
+    np.testing.assert_allclose(cloth.model.mass, m0, rtol=1e-12)
+    fixed = sheet_against_sphere(n=8, contact_stiffness=20.0)   # the default: masses stay
+    mf = fixed.model.mass.copy()
+    fixed.set_control(rest=fixed.control.rest * 1.1)
+    np.testing.assert_array_equal(fixed.model.mass, mf)
+
+
+def test_gradient_wrt_rest_coordinates_with_masses_following(mass_scene):
+    """The rest gradient includes ∂m/∂x̄ (gravity and the refinement's anchor springs are
+    mass-weighted): central differences of the re-solved drape, masses recomputed each time."""
+    cloth, W, x_star, control = mass_scene
+    g = equilibrium_gradient(cloth, W)
+    rng = np.random.default_rng(3)
+    free = np.flatnonzero(cloth.model.inv_mass > 0)
+    picks = [(int(i), int(k)) for i, k in zip(rng.choice(free, 10, replace=False), rng.integers(0, 2, 10))]
+    h = 1e-6
+    num, adj = [], []
+    for i, k in picks:
+        rp, rm = control.rest.copy(), control.rest.copy()
+        rp[i, k] += h
+        rm[i, k] -= h
+        num.append((_phi_after(cloth, W, x_star, control, rest=rp) - _phi_after(cloth, W, x_star, control, rest=rm)) / (2 * h))
+        adj.append(g["rest"][i, k])
+    _check(adj, num)
+    # the mass term matters: the fixed-mass gradient at the same drape misses it by far more
+    # than the tolerance above
+    mat = ClothMaterial(warp_compliance=2e-2, weft_compliance=3e-2, shear_compliance=5e-2, bend_stiffness=2e-5)
+    fixed = sheet_against_sphere(n=8, materials=mat, contact_stiffness=20.0)
+    fixed.state.x = x_star
+    fixed.refine(residual_tol=TOL, refine_iterations=200)
+    gf = np.array([equilibrium_gradient(fixed, W)["rest"][i, k] for i, k in picks])
+    num = np.asarray(num)
+    assert np.max(np.abs(gf - num) / np.abs(num).max()) > 10e-3   # 10× _check's tolerance

@@ -245,3 +245,14 @@ def test_progress_cancellation_and_tape_size(free_sheet):
     per_sweep = 12 * nf + 14 * nh + 9 * ns
     assert g["step_tape_mb"] == pytest.approx(KW["iterations"] * per_sweep * 8 / 2**20, rel=1e-12)
     assert g["peak_tape_mb"] >= g["step_tape_mb"]
+
+
+def test_a_cloth_whose_masses_follow_its_rest_is_refused():
+    """The replay holds masses fixed, so its rest gradient would miss ∂m/∂x̄: refused, named."""
+    cloth = sheet_against_sphere(n=5, materials=MAT, masses_follow_rest=True)
+    W = np.ones(cloth.x.shape)
+    with pytest.raises(ValueError, match="masses_follow_rest"):
+        trajectory_gradient(cloth, T, W, **KW)
+    run = record_trajectory(cloth, T, **KW)   # the forward pass alone is fine
+    with pytest.raises(ValueError, match="masses_follow_rest"):
+        run.gradient(W)

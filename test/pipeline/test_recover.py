@@ -197,6 +197,8 @@ def test_options_from_node_dict_and_config():
         RecoverOptions.from_config(output_edge_length=0.001)
     with pytest.raises(ValueError, match="optimize_body"):
         RecoverOptions.from_config(optimize_body="no")
+    with pytest.raises(ValueError, match="masses_follow_rest"):
+        RecoverOptions.from_config(masses_follow_rest="yes")
     with pytest.raises(ValueError, match="length_measure"):
         RecoverOptions.from_config(length_measure="smooth")
     with pytest.raises(ValueError, match="length_tolerance_pct"):

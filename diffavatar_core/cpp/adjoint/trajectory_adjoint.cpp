@@ -651,8 +651,18 @@ TrajectoryCheckpoints trajectory_forward(XpbdSolver& S, const ClothState& start,
   return forward_pass(S, start, p, steps, k, rc, steps);
 }
 
+// The replay differentiates the projections with the masses held fixed: a model whose masses
+// follow its rest shape would get a rest gradient without the ∂m/∂x̄ terms, so it is refused.
+static void require_fixed_masses(const ClothModel& m) {
+  if (m.masses_follow_rest)
+    throw std::invalid_argument("trajectory adjoint: this cloth's masses follow its rest shape "
+                                "(masses_follow_rest); the trajectory adjoint holds masses fixed — "
+                                "use the equilibrium adjoint, or a Cloth with masses_follow_rest=False");
+}
+
 TrajectoryGradient trajectory_backward(XpbdSolver& S, const TrajectoryCheckpoints& fw, const RowMatX3d& dphi_dx,
                                        const RowMatX3d& dphi_dv, RunControl& rc) {
+  require_fixed_masses(S.model());
   return backward_pass(S, fw, dphi_dx, dphi_dv, rc, 0, fw.steps);
 }
 
@@ -660,6 +670,7 @@ TrajectoryGradient trajectory_adjoint(XpbdSolver& S, const ClothState& start, co
                                       const RowMatX3d& dphi_dx, const RowMatX3d& dphi_dv, int k, RunControl& rc) {
   auto t0 = std::chrono::steady_clock::now();
   const ClothModel& m = S.model();
+  require_fixed_masses(m);
   // checked before the forward pass too, so a wrong argument fails before any simulation
   if (dphi_dx.rows() != m.num_vertices || dphi_dv.rows() != m.num_vertices)
     throw std::invalid_argument("trajectory adjoint: dphi_dx and dphi_dv must be #V×3");

@@ -277,6 +277,23 @@ ControlGradient mixed_product(const EnergyContext& c, const RowMatX3d& x, const 
     for (int k = 0; k < 4; ++k) g.rest.row(m.hinges(h, k)) += hu[h].segment<2>(2 * k).transpose();
     g.bend_stiffness[m.hinge_group[h]] += hk[h];
   }
+  if (m.masses_follow_rest) {
+    // ∇_{x_i}E ∋ m_i (−g + κ (x_i − a_i)) with m_i = ρ Σ_{t∋i} A_t(x̄)/3:
+    // μᵀ ∂/∂x̄ = Σ_t (ρ/3) Σ_{i∈t} μ_i·(−g + κ (x_i − a_i)) ∂A_t/∂x̄.
+    VecXd s(m.num_vertices);
+    const bool anchored = c.anchor && c.anchor_stiffness > 0;
+    for (int i = 0; i < m.num_vertices; ++i) {
+      Vec3 f = -c.gravity;
+      if (anchored) f += c.anchor_stiffness * (x.row(i) - c.anchor->row(i)).transpose();
+      s[i] = mu.row(i).dot(f.transpose());
+    }
+    for (int t = 0; t < m.faces.rows(); ++t) {
+      const int a = m.faces(t, 0), b = m.faces(t, 1), d = m.faces(t, 2);
+      const double w = m.density / 3.0 * (s[a] + s[b] + s[d]);
+      auto dA = triangle_area_gradient(c.control.rest.row(a), c.control.rest.row(b), c.control.rest.row(d));
+      for (int k = 0; k < 3; ++k) g.rest.row(m.faces(t, k)) += w * dA.row(k);
+    }
+  }
   for (const Contact& ct : c.contacts) {
     Jet<12> C = contact_C(c, x, ct);
     if (C.v >= 0.0) continue;

@@ -8,6 +8,26 @@
 
 namespace diffavatar {
 
+void set_lumped_masses(ClothModel& m, const RefX2d& rest) {
+  const int nv = m.num_vertices;
+  VecXd mass = VecXd::Zero(nv);
+  for (int t = 0; t < m.faces.rows(); ++t) {
+    Vec2 a = rest.row(m.faces(t, 0)), b = rest.row(m.faces(t, 1)), c = rest.row(m.faces(t, 2));
+    double A = 0.5 * ((b - a).x() * (c - a).y() - (c - a).x() * (b - a).y());
+    if (!(A > 0)) throw std::invalid_argument("cloth model: rest triangle " + std::to_string(t) +
+                                              " is degenerate or clockwise in the pattern plane");
+    for (int k = 0; k < 3; ++k) mass[m.faces(t, k)] += m.density * A / 3.0;
+  }
+  VecXd inv_mass = VecXd::Zero(nv);
+  for (int i = 0; i < nv; ++i) {
+    if (!(mass[i] > 0)) throw std::invalid_argument("cloth model: vertex " + std::to_string(i) + " is in no triangle");
+    inv_mass[i] = 1.0 / mass[i];
+  }
+  for (int p : m.pinned) inv_mass[p] = 0.0;
+  m.mass = std::move(mass);
+  m.inv_mass = std::move(inv_mass);
+}
+
 std::vector<std::vector<int>> color_constraints(const std::vector<std::vector<int>>& verts, int num_vertices) {
   std::vector<std::vector<int>> used(num_vertices);  // colours used at each vertex
   std::vector<std::vector<int>> colors;
@@ -28,7 +48,7 @@ std::vector<std::vector<int>> color_constraints(const std::vector<std::vector<in
 ClothModel build_cloth_model(int nv, const RefX3i& F, const RefX2d& rest, const VecXi& tri_group,
                              const RefX2i& seams, const std::vector<int>& pinned, const RefX3i& body_faces,
                              double density, double thickness, double contact_stiffness, double seam_compliance,
-                             const VecXd& tri_grain) {
+                             const VecXd& tri_grain, bool masses_follow_rest) {
   if (nv <= 0) throw std::invalid_argument("cloth model: no vertices");
   if (rest.rows() != nv) throw std::invalid_argument("cloth model: rest must have one row per vertex");
   if (tri_group.size() != F.rows()) throw std::invalid_argument("cloth model: tri_group must have one entry per face");
@@ -50,24 +70,12 @@ ClothModel build_cloth_model(int nv, const RefX3i& F, const RefX2d& rest, const 
   m.thickness = thickness;
   m.contact_stiffness = contact_stiffness;
   m.seam_compliance = seam_compliance;
-  // Masses from rest areas.
-  m.mass = VecXd::Zero(nv);
-  for (int t = 0; t < F.rows(); ++t) {
-    Vec2 a = rest.row(F(t, 0)), b = rest.row(F(t, 1)), c = rest.row(F(t, 2));
-    double A = 0.5 * ((b - a).x() * (c - a).y() - (c - a).x() * (b - a).y());
-    if (!(A > 0)) throw std::invalid_argument("cloth model: rest triangle " + std::to_string(t) +
-                                              " is degenerate or clockwise in the pattern plane");
-    for (int k = 0; k < 3; ++k) m.mass[F(t, k)] += density * A / 3.0;
-  }
-  m.inv_mass = VecXd::Zero(nv);
-  for (int i = 0; i < nv; ++i) {
-    if (!(m.mass[i] > 0)) throw std::invalid_argument("cloth model: vertex " + std::to_string(i) + " is in no triangle");
-    m.inv_mass[i] = 1.0 / m.mass[i];
-  }
-  for (int p : pinned) {
+  m.density = density;
+  for (int p : pinned)
     if (p < 0 || p >= nv) throw std::invalid_argument("cloth model: pinned index out of range");
-    m.inv_mass[p] = 0.0;
-  }
+  m.pinned = pinned;
+  m.masses_follow_rest = masses_follow_rest;
+  set_lumped_masses(m, rest);
   // Hinges: interior edges shared by exactly two consistently oriented triangles.
   std::map<std::pair<int, int>, std::vector<std::pair<int, int>>> edges;  // (min,max) -> (tri, local k)
   for (int t = 0; t < F.rows(); ++t)

@@ -1,7 +1,9 @@
 // Model = what does not change while simulating or optimizing: topology (faces, hinges,
 // seams), masses, pinned vertices, material groups, body topology, contact/seam constants,
 // and the constraint colouring used to run XPBD in parallel. Rest shape, material values
-// and body vertex positions are the Control (cloth_control.hpp); x, v, λ the State.
+// and body vertex positions are the Control (cloth_control.hpp); x, v, λ the State. With
+// masses_follow_rest the lumped masses are a function of the Control's rest shape instead:
+// the solver recomputes them at every set_control (a pattern with more area weighs more).
 #pragma once
 #include <Eigen/Core>
 #include <vector>
@@ -25,6 +27,9 @@ struct ClothModel {
   RowMatX2i seams;        // #S×2 vertex pairs sewn together
   VecXd mass;             // #V kg (areal density × one third of the adjacent rest areas)
   VecXd inv_mass;         // #V 1/kg, 0 for pinned vertices
+  double density = 0.15;  // areal density ρ (kg/m²) the masses come from
+  std::vector<int> pinned;          // pinned vertex indices (inv_mass 0)
+  bool masses_follow_rest = false;  // masses from the control's rest areas (set_lumped_masses)
   int num_groups = 1;
   RowMatX3i body_faces;   // #Fb×3 body triangles (outward normals by the right-hand rule)
   double thickness = 0.004;          // collision thickness h (m)
@@ -40,7 +45,20 @@ struct ClothModel {
 ClothModel build_cloth_model(int num_vertices, const RefX3i& faces, const RefX2d& rest, const VecXi& tri_group,
                              const RefX2i& seams, const std::vector<int>& pinned, const RefX3i& body_faces,
                              double density, double thickness, double contact_stiffness, double seam_compliance,
-                             const VecXd& tri_grain = VecXd());
+                             const VecXd& tri_grain = VecXd(), bool masses_follow_rest = false);
+
+/// m.mass[i] = ρ Σ_{t∋i} A_t(rest)/3 (kg) and m.inv_mass (0 for m.pinned) from the rest areas of
+/// `rest` (#V×2, m). Throws std::invalid_argument for a degenerate or clockwise rest triangle.
+void set_lumped_masses(ClothModel& m, const RefX2d& rest);
+
+/// ∂A_t/∂x̄ of a pattern triangle's area A = ½ (b−a)×(c−a), for its three corners (2D, m).
+inline Eigen::Matrix<double, 3, 2> triangle_area_gradient(const Vec2& a, const Vec2& b, const Vec2& c) {
+  Eigen::Matrix<double, 3, 2> g;
+  g << 0.5 * (b.y() - c.y()), 0.5 * (c.x() - b.x()),
+       0.5 * (c.y() - a.y()), 0.5 * (a.x() - c.x()),
+       0.5 * (a.y() - b.y()), 0.5 * (b.x() - a.x());
+  return g;
+}
 
 /// Greedy colouring of constraints given as vertex lists; deterministic (input order).
 std::vector<std::vector<int>> color_constraints(const std::vector<std::vector<int>>& verts, int num_vertices);

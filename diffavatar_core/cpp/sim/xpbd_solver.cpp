@@ -26,7 +26,8 @@ XpbdSolver::XpbdSolver(ClothModel model, ClothControl control) : model_(std::mov
 }
 
 void XpbdSolver::set_control(ClothControl control) {
-  cache_ = prepare_control(model_, control);
+  cache_ = prepare_control(model_, control);  // validates the rest shape before any mass uses it
+  if (model_.masses_follow_rest) set_lumped_masses(model_, control.rest);
   control_ = std::move(control);
   collider_.set_vertices(control_.body_vertices);
   bump_revision();
