@@ -1,5 +1,5 @@
 """The synthetic benchmark cases shared by bench/recover_floor.py and
-bench/bending_information.py: per template, seeds 100, 101, ... with the bending stiffness
+bench/material_information.py: per template, seeds 100, 101, ... with the bending stiffness
 spread over two decades as in bench/recover.py (10^(−6 + 2k/(n − 1)) N·m for case k of n), and
 the common command line (`--templates skirt,tshirt --cases 3`) that runs one function per case
 and prints JSON. A helper, not a benchmark (scripts/bench.sh skips bench/_*.py)."""
@@ -12,16 +12,22 @@ def case_grid(templates, cases: int):
     return [(tpl, 100 + k, 10 ** (-6 + 2 * k / max(cases - 1, 1))) for tpl in templates for k in range(cases)]
 
 
-def run_grid(benchmark: str, case_fn, extra: dict | None = None) -> list:
-    """Parses --templates/--cases, runs case_fn(template, seed, bend) per case (one JSON line
-    each, as it finishes) and prints the whole run as one JSON document at the end."""
+def run_grid(benchmark: str, case_fn, extra: dict | None = None, add_arguments=None) -> list:
+    """Parses --templates/--cases (and what add_arguments(parser) adds), runs
+    case_fn(template, seed, bend[, args]) per case (one JSON line each, as it finishes) and
+    prints the whole run as one JSON document at the end; `extra` (a dict, or a function of the
+    parsed args giving one) goes into that document."""
     ap = argparse.ArgumentParser()
     ap.add_argument("--templates", default="skirt,tshirt")
     ap.add_argument("--cases", type=int, default=3)
+    if add_arguments is not None:
+        add_arguments(ap)
     args = ap.parse_args()
+    more = (args,) if add_arguments is not None else ()
     rows = []
     for tpl, seed, bend in case_grid(args.templates.split(","), args.cases):
-        rows.append(case_fn(tpl, seed, bend))
+        rows.append(case_fn(tpl, seed, bend, *more))
         print(json.dumps(rows[-1]), flush=True)
-    print(json.dumps({"benchmark": benchmark, **(extra or {}), "cases": rows}, indent=2))
+    head = extra(args) if callable(extra) else (extra or {})
+    print(json.dumps({"benchmark": benchmark, **head, "cases": rows}, indent=2))
     return rows

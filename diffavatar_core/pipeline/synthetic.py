@@ -95,11 +95,16 @@ def random_body(model: BodyModel, rng, shape_sd: float = 0.5, num_shape: int = 4
 MAX_TOP_DROP = 0.15
 
 
-def drape_truth(g: Garment, body, bend_stiffness: float, max_steps: int = 600, cancel=None):
-    """The ground-truth drape of garment g on body (V, F): (Cloth, DrapeResult). Raises
-    RuntimeError when the garment did not stay on the body (its top sank more than MAX_TOP_DROP
-    below where it was placed) or the drape did not converge."""
-    mat = ClothMaterial(bend_stiffness=bend_stiffness)
+def drape_truth(g: Garment, body, bend_stiffness: float, max_steps: int = 600, cancel=None,
+                compliance_scale: float = 1.0):
+    """The ground-truth drape of garment g on body (V, F): (Cloth, DrapeResult); the default
+    material's stretch compliances × compliance_scale. Raises RuntimeError when the garment did
+    not stay on the body (its top sank more than MAX_TOP_DROP below where it was placed) or the
+    drape did not converge."""
+    d = ClothMaterial()
+    mat = ClothMaterial(bend_stiffness=bend_stiffness, warp_compliance=d.warp_compliance * compliance_scale,
+                        weft_compliance=d.weft_compliance * compliance_scale,
+                        shear_compliance=d.shear_compliance * compliance_scale)
     cloth = Cloth(g.rest, g.faces, g.x0, seams=g.seams, groups=g.panel[g.faces[:, 0]],
                   materials=[mat] * len(g.panels), body=body, grain=g.face_grain())
     cloth.sew(cancel=cancel)
