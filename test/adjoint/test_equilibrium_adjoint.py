@@ -47,13 +47,12 @@ def _check(adj, num):
     assert np.mean(np.sign(adj[big]) == np.sign(num[big])) >= 0.99
 
 
-def test_gradient_wrt_rest_coordinates(scene):
-    cloth, W, x_star, control = scene
+def _rest_fd(cloth, W, x_star, control, seed, h=1e-6):
+    """(picks, central differences, adjoint) of φ for 10 random free rest coordinates."""
     g = equilibrium_gradient(cloth, W)
-    rng = np.random.default_rng(2)
+    rng = np.random.default_rng(seed)
     free = np.flatnonzero(cloth.model.inv_mass > 0)
     picks = [(int(i), int(k)) for i, k in zip(rng.choice(free, 10, replace=False), rng.integers(0, 2, 10))]
-    h = 1e-6
     num, adj = [], []
     for i, k in picks:
         rp, rm = control.rest.copy(), control.rest.copy()
@@ -61,6 +60,11 @@ def test_gradient_wrt_rest_coordinates(scene):
         rm[i, k] -= h
         num.append((_phi_after(cloth, W, x_star, control, rest=rp) - _phi_after(cloth, W, x_star, control, rest=rm)) / (2 * h))
         adj.append(g["rest"][i, k])
+    return picks, np.array(num), np.array(adj)
+
+
+def test_gradient_wrt_rest_coordinates(scene):
+    _, num, adj = _rest_fd(*scene, seed=2)
     _check(adj, num)
 
 
@@ -154,18 +158,7 @@ def test_gradient_wrt_rest_coordinates_with_masses_following(mass_scene):
     """The rest gradient includes ∂m/∂x̄ (gravity and the refinement's anchor springs are
     mass-weighted): central differences of the re-solved drape, masses recomputed each time."""
     cloth, W, x_star, control = mass_scene
-    g = equilibrium_gradient(cloth, W)
-    rng = np.random.default_rng(3)
-    free = np.flatnonzero(cloth.model.inv_mass > 0)
-    picks = [(int(i), int(k)) for i, k in zip(rng.choice(free, 10, replace=False), rng.integers(0, 2, 10))]
-    h = 1e-6
-    num, adj = [], []
-    for i, k in picks:
-        rp, rm = control.rest.copy(), control.rest.copy()
-        rp[i, k] += h
-        rm[i, k] -= h
-        num.append((_phi_after(cloth, W, x_star, control, rest=rp) - _phi_after(cloth, W, x_star, control, rest=rm)) / (2 * h))
-        adj.append(g["rest"][i, k])
+    picks, num, adj = _rest_fd(cloth, W, x_star, control, seed=3)
     _check(adj, num)
     # the mass term matters: the fixed-mass gradient at the same drape misses it by far more
     # than the tolerance above
@@ -174,5 +167,4 @@ def test_gradient_wrt_rest_coordinates_with_masses_following(mass_scene):
     fixed.state.x = x_star
     fixed.refine(residual_tol=TOL, refine_iterations=200)
     gf = np.array([equilibrium_gradient(fixed, W)["rest"][i, k] for i, k in picks])
-    num = np.asarray(num)
     assert np.max(np.abs(gf - num) / np.abs(num).max()) > 10e-3   # 10× _check's tolerance
