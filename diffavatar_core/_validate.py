@@ -63,3 +63,19 @@ def positive_int(name: str, n) -> int:
     if k <= 0 or k != n:
         raise ValueError(f"{name}: expected a positive integer, got {n!r}")
     return k
+
+
+def is_cancelled(cancel) -> bool:
+    """Whether `cancel` — None, a CancelToken, a threading.Event, or anything with a
+    `cancelled` flag — asks to stop."""
+    if cancel is None:
+        return False
+    return bool(cancel.is_set()) if hasattr(cancel, "is_set") else bool(getattr(cancel, "cancelled", False))
+
+
+def check_cancel(cancel, stage: str) -> None:
+    """Raises diffavatar_core.Cancelled("cancelled during <stage>") when `cancel` is set: the
+    check of the Python-level loops (the C++ ones take a CancelToken directly)."""
+    if is_cancelled(cancel):
+        from ._core import Cancelled
+        raise Cancelled(f"cancelled during {stage}")

@@ -138,8 +138,14 @@ class JobQueue:
         with self._cv:
             return self._jobs.get(job_id)
 
+    @property
+    def stopped(self) -> bool:
+        """True once the worker thread has ended (after shutdown)."""
+        return not self._worker.is_alive()
+
     def shutdown(self, timeout: float = 5.0) -> None:
-        """Cancels everything and stops the worker."""
+        """Cancels everything and stops the worker, waiting up to `timeout` s for the running
+        job to reach a cancel check (see `stopped`)."""
         with self._cv:
             self._stopping = True
             pending = list(self._pending)

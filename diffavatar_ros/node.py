@@ -27,6 +27,7 @@ import math
 import os
 import pathlib
 import signal
+import sys
 import threading
 import time
 
@@ -388,14 +389,21 @@ class DiffAvatarNode(Node):
         arr.header.stamp = self.get_clock().now().to_msg()
         self._status_pub.publish(arr)
 
-    def destroy_node(self):
-        """Cancels every job; goals still open get their (cancelled) result while the executor
-        spins (up to 1 s), then the action server goes before the rest of the node."""
-        self._queue.shutdown()
+    def stop_jobs(self, timeout: float = 5.0) -> None:
+        """Cancels every job (waiting up to `timeout` s for the running one to stop); goals still
+        open get their (cancelled) result while an executor spins the node (up to 1 s more).
+        Idempotent; destroy_node calls it."""
+        self._queue.shutdown(timeout)
         deadline = time.monotonic() + 1.0
         while self._goal_jobs and time.monotonic() < deadline and self.context.ok():
             self._wake.trigger()
             time.sleep(0.01)
+
+    def destroy_node(self):
+        """stop_jobs(), then the action server goes before the rest of the node. Stop the
+        executor spinning this node first (stop_jobs while it still spins, for the goals):
+        destroying entities under a spinning executor makes its wait fail."""
+        self.stop_jobs()
         self._action.destroy()
         super().destroy_node()
 
@@ -439,6 +447,11 @@ def main(args=None):
     try:
         while not stop.is_set() and node.context.ok():
             executor.spin_once(timeout_sec=SPIN_PERIOD_S)
+        # the jobs are cancelled while the executor still spins: open goals get their results
+        stopper = threading.Thread(target=node.stop_jobs, name="diffavatar-stop", daemon=True)
+        stopper.start()
+        while stopper.is_alive() and node.context.ok():
+            executor.spin_once(timeout_sec=SPIN_PERIOD_S)
     except ExternalShutdownException:   # the context was shut down by someone else
         pass
     finally:
@@ -449,6 +462,12 @@ def main(args=None):
         node.destroy_node()
         shutdown_executor(executor)
         rclpy.try_shutdown()
+        if not node.queue.stopped:
+            # a job still inside a long core call: letting the interpreter finalize under it
+            # aborts the process ("terminate called..."); say so and leave at once instead
+            print("diffavatar_node: the running job did not stop within 5 s of its cancel; exiting "
+                  "without waiting for it", file=sys.stderr, flush=True)
+            os._exit(1)
 
 
 if __name__ == "__main__":

@@ -57,6 +57,7 @@ from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
 from .. import _core, _validate
+from .._validate import check_cancel
 from .model import BodyModel
 from .params import BodyParams
 
@@ -152,8 +153,9 @@ def _face_normals(X, F):
 
 class _Fitter:
     def __init__(self, model: BodyModel, scan: np.ndarray, scan_faces, opts: FitOptions, garment: bool,
-                 progress=None, occluders=None):
+                 progress=None, occluders=None, cancel=None):
         self.m, self.opts, self.garment = model, opts, garment
+        self.cancel = cancel
         self.scan = scan
         self.scan_faces = scan_faces
         self.tree = cKDTree(scan)
@@ -298,6 +300,7 @@ class _Fitter:
         lam = 1e-4
         rms = float("nan")
         for it in range(iterations):
+            check_cancel(self.cancel, "body fit")
             sigma = float(sigmas[min(it, len(sigmas) - 1)])
             self.pose_boost = float(boosts[min(it, len(boosts) - 1)])
             self.pen_on = 1.0 if it >= iterations - pen_last else 0.0
@@ -371,7 +374,7 @@ def _anchor_point(model: BodyModel, anchor: str) -> np.ndarray:
 
 def fit_body(scan_vertices, scan_faces=None, model: BodyModel | None = None, *, units: str = "m",
              up: str = "y", garment_only: bool | None = None, garment_type: str | None = None,
-             options: FitOptions | None = None, progress=None, occluders=None) -> FitResult:
+             options: FitOptions | None = None, progress=None, occluders=None, cancel=None) -> FitResult:
     """Fits the body to a scan (points (N,3), optional triangles (F,3)) given in `units`
     (m/cm/mm) with `up` ('y' or 'z') vertical. Returns the body parameters in the core frame
     (m, Y up) of the converted scan.
@@ -385,7 +388,9 @@ def fit_body(scan_vertices, scan_faces=None, model: BodyModel | None = None, *, 
     occluders (M,3), same units and axes: full scans — the points of the garment covering the
     body. A body vertex nearer to them than to the body points is hidden under the garment and
     not pulled toward the body points (without them, the arms under long sleeves swung toward
-    the hips and hands: 6–13 cm mean vertex error)."""
+    the hips and hands: 6–13 cm mean vertex error).
+    cancel: a threading.Event or CancelToken, checked every Gauss–Newton iteration (a fit takes
+    seconds): raises diffavatar_core.Cancelled."""
     model = model or BodyModel.default()
     o = options or FitOptions()
     if garment_only is None:
@@ -420,7 +425,7 @@ def fit_body(scan_vertices, scan_faces=None, model: BodyModel | None = None, *, 
     occ = None
     if occluders is not None and len(occluders) and not garment_only:
         occ = _validate.points("occluders", occluders) @ A.T
-    fitter = _Fitter(model, P, F, o, garment_only, progress=None, occluders=occ)
+    fitter = _Fitter(model, P, F, o, garment_only, progress=None, occluders=occ, cancel=cancel)
     if garment_only:
         _garment_setup(fitter, model, P, hi[1], garment_class_of(garment_type) if garment_type else "upper")
     free_rigid = np.zeros(model.num_params, bool)

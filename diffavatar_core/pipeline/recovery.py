@@ -14,6 +14,7 @@ Stages (each reported through `progress` and checked for cancellation):
 """
 from __future__ import annotations
 
+import threading
 import time
 from functools import partial
 
@@ -21,6 +22,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from .. import _core
+from .._validate import is_cancelled
 from ..body import BodyModel
 from ..body.fitting import fit_body
 from ..metrics import chamfer_meshes, mesh_quality
@@ -43,6 +45,7 @@ STAGES = ("preprocess", "body", "drape", "optimize", "refine", "metrics")
 # garment class → built-in template when the type names a class or a synonym (config/labels.yaml)
 CLASS_TEMPLATE = {"upper": "tshirt", "dress": "dress", "skirt": "skirt", "pants": "pants"}
 LONG_SLEEVE_REACH = 0.95    # sleeve_reach above this: long sleeves (between the t-shirt's ~0.65 and the longsleeve's ~1.3)
+CANCEL_POLL_S = 0.05        # s: how often a threading.Event given as `cancel` is looked at
 SELF_ANCHOR_TOL = 1e-4      # m: the output drape re-anchored at itself until it moves less (Cloth.self_anchor)
 OUTPUT_SWEEPS = 100         # XPBD sweeps per step of the fine output drape (as `diffavatar drape`)
 MIN_BODY_FRACTION = 0.2    # of the scan's vertices, for a body fit to the body-labelled points
@@ -54,16 +57,35 @@ class RecoveryError(ValueError):
 
 
 class _Control:
-    """Progress and cancellation from either the node's RunControl or the API's callbacks."""
+    """Progress and cancellation from either the node's RunControl or the API's callbacks. The
+    C++ calls watch `token`: the RunControl's, the caller's own CancelToken, or — for a
+    threading.Event — a token that a watcher thread sets within CANCEL_POLL_S of the event
+    (otherwise a long drape would only notice at its end). close() ends the watcher."""
 
     def __init__(self, run_control=None, progress=None, cancel=None):
         self.rc, self.progress, self.user_cancel = run_control, progress, cancel
-        self.token = run_control.cancel if run_control is not None else _core.CancelToken()
+        self._done = threading.Event()
+        if run_control is not None:
+            self.token = run_control.cancel
+        elif isinstance(cancel, _core.CancelToken):
+            self.token = cancel
+        else:
+            self.token = _core.CancelToken()
+            if hasattr(cancel, "wait"):
+                threading.Thread(target=self._watch, name="recover-cancel-watch", daemon=True).start()
+
+    def _watch(self) -> None:
+        while not self._done.is_set():
+            if self.user_cancel.wait(CANCEL_POLL_S):
+                self.token.cancel()
+                return
+
+    def close(self) -> None:
+        self._done.set()
 
     @property
     def cancelled(self) -> bool:
-        uc = self.user_cancel
-        if uc is not None and (uc.is_set() if hasattr(uc, "is_set") else bool(getattr(uc, "cancelled", False))):
+        if is_cancelled(self.user_cancel):
             self.token.cancel()
         return self.token.cancelled
 
@@ -194,6 +216,13 @@ def recover(scan, options=None, run_control=None, *, progress=None, cancel=None,
     t0 = time.perf_counter()
     opts = RecoverOptions.coerce(options)
     ctl = _Control(run_control, progress, cancel)
+    try:
+        return _recover(scan, opts, ctl, body_model, t0)
+    finally:
+        ctl.close()
+
+
+def _recover(scan, opts: RecoverOptions, ctl: "_Control", body_model, t0: float) -> RecoveryResult:
     ctl.report("preprocess")
     if isinstance(scan, ScanData):
         data = scan
@@ -214,7 +243,8 @@ def recover(scan, options=None, run_control=None, *, progress=None, cancel=None,
     pts = data.vertices[body_mask] if full else Vg_scan
     fit = fit_body(pts, None, model, garment_only=not full,
                    garment_type=None if full else (data.garment_type or data.garment_class),
-                   occluders=Vg_scan if full else None)   # the body under the garment is unseen
+                   occluders=Vg_scan if full else None,   # the body under the garment is unseen
+                   cancel=ctl)
     ctl.check("body")
     body_params = fit.params
     body_vertices = model.pose(body_params)

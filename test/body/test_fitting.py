@@ -255,3 +255,23 @@ def test_a_ground_truth_skirt_that_slid_off_the_body_is_refused(model):
     from diffavatar_core.pipeline.synthetic import make_case
     with pytest.raises(RuntimeError, match="slid off the body"):
         make_case("skirt", seed=0, model=model, measurements={"waist_ease": 0.5})
+
+
+@pytest.mark.parametrize("kind", ["token", "event"])
+def test_a_fit_stops_within_an_iteration_of_its_cancel(model, kind):
+    """A fit takes seconds: its Gauss–Newton loop checks `cancel` (a CancelToken or a
+    threading.Event) every iteration, so a cancel set mid-fit ends it at once."""
+    import threading
+    import time
+    import diffavatar_core as dc
+    X = model.pose(random_body(model, np.random.default_rng(7)))
+    cancel = dc.CancelToken() if kind == "token" else threading.Event()
+    set_at = []
+    timer = threading.Timer(0.3, lambda: (set_at.append(time.monotonic()),
+                                          cancel.cancel() if kind == "token" else cancel.set()))
+    timer.start()
+    t0 = time.monotonic()
+    with pytest.raises(dc.Cancelled, match="body fit"):
+        fit_body(X, model=model, cancel=cancel)
+    assert set_at, "the fit ended before its cancel was set (it no longer takes 0.3 s)"
+    assert time.monotonic() - set_at[0] < 0.5, time.monotonic() - t0

@@ -3,6 +3,7 @@ differences, an end-to-end recovery of the bundled synthetic scan toward its gro
 option handling, cancellation and bad inputs with clear errors."""
 import json
 import threading
+import time
 
 import numpy as np
 import pytest
@@ -233,6 +234,25 @@ def test_cancel_stops_the_job():
             ev.set()
     with pytest.raises(dc.Cancelled):
         recover(SAMPLE, {"units": "cm", "iterations": 2}, progress=progress, cancel=ev)
+
+
+@pytest.mark.parametrize("stage", ["body", "drape"])
+def test_a_cancel_event_ends_a_long_stage_at_once(stage):
+    """A threading.Event set in the middle of the body fit (Python) or of the initial drape (one
+    long C++ call that watches a CancelToken) ends the recovery within half a second."""
+    ev, set_at = threading.Event(), []
+
+    def fire():
+        set_at.append(time.monotonic())
+        ev.set()
+
+    def progress(s, *_):
+        if s == stage and not set_at:
+            threading.Timer(0.3, fire).start()
+    with pytest.raises(dc.Cancelled) as err:
+        recover(SAMPLE, {"units": "cm", "iterations": 2}, progress=progress, cancel=ev)
+    ended = time.monotonic()
+    assert set_at and ended - set_at[0] < 0.5, (ended - set_at[0], str(err.value))
 
 
 def _sample_arrays():

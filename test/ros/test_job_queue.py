@@ -110,3 +110,23 @@ def test_on_queued_runs_before_the_job_can_start_and_reject_answers_at_once():
         assert events.index(("queued", f"j{i}")) < events.index(("run", f"j{i}")) < events.index(("finished", f"j{i}"))
     assert ("finished", "bad") in events and ("run", "bad") not in events
     q.shutdown()
+
+
+def test_stopped_says_whether_shutdown_outlived_the_running_job():
+    """A job that reaches no cancel check for a while outlives a short shutdown: `stopped` is
+    False until it ends (the node then exits at once rather than finalize under it)."""
+    release = threading.Event()
+    running = threading.Event()
+
+    def stubborn(job):
+        running.set()
+        release.wait(30)   # ignores its cancel until released
+        return "late"
+    q = JobQueue(stubborn)
+    q.submit(None, job_id="stubborn")
+    assert running.wait(30)
+    q.shutdown(timeout=0.1)
+    assert not q.stopped
+    release.set()
+    q.shutdown(timeout=30)
+    assert q.stopped

@@ -52,8 +52,9 @@ class Service:
         self.thread = _spin_in_thread(self.executor)
 
     def close(self):
-        self.node.destroy_node()
+        self.node.stop_jobs()   # while the executor spins: open goals get their results
         shutdown_executor(self.executor, self.thread)
+        self.node.destroy_node()
 
 
 class Client:
@@ -113,9 +114,10 @@ class Client:
             return [p for p in self.progress if p.job_id == job_id]
 
     def close(self):
+        self.executor.shutdown()   # stop spinning before destroying what the executor waits on
+        self.thread.join(10)
         self.action.destroy()
         self.node.destroy_node()
-        self.executor.shutdown()
 
 
 def _wait(future, timeout=20.0):
@@ -564,8 +566,8 @@ def test_shutdown_executor_leaves_no_worker_threads(ros_context):
         pool = {t for t in ex._executor._threads if t.is_alive()}
         assert pool
     finally:
-        node.destroy_node()
         shutdown_executor(ex, spin)
+        node.destroy_node()
     assert not spin.is_alive()
     assert not any(t.is_alive() for t in pool)
 
@@ -605,6 +607,52 @@ def test_entry_point_runs_the_node_in_its_own_process(ros_domain, ros_context, t
             pytest.fail(f"the node did not exit within 30 s of {stop_signal.name}:\n{out}")
     assert proc.returncode == 0, out
     assert "FASTDDS_BUILTIN_TRANSPORTS=LARGE_DATA" in out
+
+
+def test_a_stop_signal_cancels_the_running_and_the_queued_job_then_exits(ros_domain, ros_context, tmp_path):
+    """SIGTERM to the node process while the real pipeline runs one job and another waits: both
+    are recorded CANCELLED on disk (while running / before it started) and the process exits
+    with status 0 well within its 20 s guard."""
+    from diffavatar_core.demo import SAMPLE
+    from diffavatar_core.scan import read_scan_file
+    raw = read_scan_file(SAMPLE)
+    params = tmp_path / "node.yaml"
+    params.write_text(f"/**:\n  ros__parameters:\n    output_dir: {tmp_path / 'o'}\n")
+    env = {**os.environ, "ROS_DOMAIN_ID": str(ros_domain)}
+    proc = subprocess.Popen([sys.executable, "-m", "diffavatar_ros", "--ros-args", "--params-file", str(params)],
+                            env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    cli = Client(ros_context)
+    try:
+        cli.wait_matched(timeout=30)
+        for job_id in ("running", "waiting"):
+            cli.send(convert.scan_to_msg(raw.vertices, raw.faces, raw.labels, (), units="cm", job_id=job_id,
+                                         iterations=50))
+        deadline = time.monotonic() + 120
+        while not any(p.stage != "queued" for p in cli.progress_of("running")):
+            assert time.monotonic() < deadline, (f"the first job did not start within 120 s (progress: "
+                                                 f"{[(p.job_id, p.stage) for p in cli.progress]})")
+            time.sleep(0.05)
+        assert [p.stage for p in cli.progress_of("waiting")] == ["queued"]
+        t0 = time.monotonic()
+        proc.send_signal(signal.SIGTERM)
+        try:
+            out = proc.communicate(timeout=30)[0]
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            out = proc.communicate()[0]
+            pytest.fail(f"the node did not exit within 30 s of SIGTERM during a job:\n{out}")
+        stopped_in = time.monotonic() - t0
+    finally:
+        cli.close()
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert proc.returncode == 0 and stopped_in < 15, (stopped_in, out)
+    for job_id, when in (("running", "while running"), ("waiting", "before it started")):
+        record = tmp_path / "o" / job_id / "error.json"
+        assert record.exists(), f"no record of job {job_id!r}; the node said:\n{out}"
+        err = json.loads(record.read_text())
+        assert err["state"] == "cancelled" and err["error"] == "CANCELLED" and when in err["message"], err
 
 
 def test_entry_point_rejects_invalid_parameters(tmp_path):

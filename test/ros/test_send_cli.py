@@ -81,8 +81,9 @@ def test_send_batch_directory_and_action(ros_domain, ros_context, tmp_path):
         assert "garment-" in proc.stdout and ": ok" in proc.stdout and proc.stderr.count("optimize") == 0
         np.testing.assert_allclose(runner.scans[-1].vertices, V, atol=1e-6)  # converted to m, Y up
     finally:
-        node.destroy_node()
+        node.stop_jobs()
         shutdown_executor(ex, spin)
+        node.destroy_node()
 
 
 def test_send_without_a_node_says_so(ros_domain, tmp_path):
