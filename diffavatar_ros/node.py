@@ -427,10 +427,11 @@ def shutdown_executor(executor, spin_thread: threading.Thread | None = None, tim
 def main(args=None):
     """Console entry `diffavatar-node` / `python -m diffavatar_ros` (accepts --ros-args).
 
-    SIGINT and SIGTERM stop the spin loop (within SPIN_PERIOD_S); the node, the executor and its
-    threads, then the context are shut down in that order, by this thread. rclpy's own signal
-    handlers are off: they shut the context down under a spinning executor, a race this order
-    avoids."""
+    SIGINT and SIGTERM stop the spin loop (within SPIN_PERIOD_S); the jobs are cancelled while
+    the executor still spins (open goals get their results), then the node, the executor and its
+    threads, and the context are shut down in that order, by this thread; at most EXIT_GRACE_S
+    after the signal the process has ended. rclpy's own signal handlers are off: they shut the
+    context down under a spinning executor, a race this order avoids."""
     configure_large_data_transport()
     stop = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
@@ -447,11 +448,6 @@ def main(args=None):
     try:
         while not stop.is_set() and node.context.ok():
             executor.spin_once(timeout_sec=SPIN_PERIOD_S)
-        # the jobs are cancelled while the executor still spins: open goals get their results
-        stopper = threading.Thread(target=node.stop_jobs, name="diffavatar-stop", daemon=True)
-        stopper.start()
-        while stopper.is_alive() and node.context.ok():
-            executor.spin_once(timeout_sec=SPIN_PERIOD_S)
     except ExternalShutdownException:   # the context was shut down by someone else
         pass
     finally:
@@ -459,6 +455,15 @@ def main(args=None):
         # teardown at interpreter exit hangs, every thread's stack goes to stderr after
         # EXIT_GRACE_S and the process exits with status 1 (a supervisor sees the failure).
         faulthandler.dump_traceback_later(EXIT_GRACE_S, exit=True)
+        # the jobs are cancelled while the executor still spins: open goals get their results
+        stopper = threading.Thread(target=node.stop_jobs, name="diffavatar-stop", daemon=True)
+        stopper.start()
+        try:
+            while stopper.is_alive() and node.context.ok():
+                executor.spin_once(timeout_sec=SPIN_PERIOD_S)
+        except Exception as exc:   # (the context went away under it) the shutdown goes on
+            print(f"diffavatar_node: while stopping: {exc!r}", file=sys.stderr, flush=True)
+        stopper.join()
         node.destroy_node()
         shutdown_executor(executor)
         rclpy.try_shutdown()

@@ -610,8 +610,9 @@ def test_entry_point_runs_the_node_in_its_own_process(ros_domain, ros_context, t
 
 
 def test_a_stop_signal_cancels_the_running_and_the_queued_job_then_exits(ros_domain, ros_context, tmp_path):
-    """SIGTERM to the node process while the real pipeline runs one job and another waits: both
-    are recorded CANCELLED on disk (while running / before it started) and the process exits
+    """SIGTERM to the node process while the real pipeline runs one job (sent on the topic) and
+    another waits (an action goal): both are recorded CANCELLED on disk (while running / before
+    it started), the goal gets its cancelled result before the node goes, and the process exits
     with status 0 well within its 20 s guard."""
     from diffavatar_core.demo import SAMPLE
     from diffavatar_core.scan import read_scan_file
@@ -624,9 +625,17 @@ def test_a_stop_signal_cancels_the_running_and_the_queued_job_then_exits(ros_dom
     cli = Client(ros_context)
     try:
         cli.wait_matched(timeout=30)
-        for job_id in ("running", "waiting"):
-            cli.send(convert.scan_to_msg(raw.vertices, raw.faces, raw.labels, (), units="cm", job_id=job_id,
-                                         iterations=50))
+        assert cli.action.wait_for_server(timeout_sec=30)
+        scan = {job_id: convert.scan_to_msg(raw.vertices, raw.faces, raw.labels, (), units="cm", job_id=job_id,
+                                            iterations=50) for job_id in ("running", "waiting")}
+        cli.send(scan["running"])
+        deadline = time.monotonic() + 60
+        while not cli.progress_of("running"):   # queued first: the goal must wait behind it
+            assert time.monotonic() < deadline, "the first job was not queued within 60 s"
+            time.sleep(0.02)
+        goal = _wait(cli.action.send_goal_async(OptimizeAvatar.Goal(scan=scan["waiting"])), 30)
+        assert goal.accepted
+        goal_result = goal.get_result_async()
         deadline = time.monotonic() + 120
         while not any(p.stage != "queued" for p in cli.progress_of("running")):
             assert time.monotonic() < deadline, (f"the first job did not start within 120 s (progress: "
@@ -642,12 +651,15 @@ def test_a_stop_signal_cancels_the_running_and_the_queued_job_then_exits(ros_dom
             out = proc.communicate()[0]
             pytest.fail(f"the node did not exit within 30 s of SIGTERM during a job:\n{out}")
         stopped_in = time.monotonic() - t0
+        answer = _wait(goal_result, 5)
     finally:
         cli.close()
         if proc.poll() is None:
             proc.kill()
             proc.communicate()
     assert proc.returncode == 0 and stopped_in < 15, (stopped_in, out)
+    assert answer.result.assets.error_code == AvatarAssets.ERROR_CANCELLED, (answer.status, out)
+    assert "before it started" in answer.result.assets.error_msg
     for job_id, when in (("running", "while running"), ("waiting", "before it started")):
         record = tmp_path / "o" / job_id / "error.json"
         assert record.exists(), f"no record of job {job_id!r}; the node said:\n{out}"
