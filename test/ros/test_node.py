@@ -572,16 +572,37 @@ def test_shutdown_executor_leaves_no_worker_threads(ros_context):
     assert not any(t.is_alive() for t in pool)
 
 
+def _node_process(tmp_path, domain, parameters: str) -> subprocess.Popen:
+    """`python -m diffavatar_ros --ros-args --params-file F` as a second process on `domain`, F
+    holding `parameters` (YAML lines under ros__parameters)."""
+    params = tmp_path / "node.yaml"
+    params.write_text("/**:\n  ros__parameters:\n" + "".join(f"    {line}\n" for line in parameters.splitlines()))
+    env = {**os.environ, "ROS_DOMAIN_ID": str(domain)}
+    return subprocess.Popen([sys.executable, "-m", "diffavatar_ros", "--ros-args", "--params-file", str(params)],
+                            env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+
+
+def _stop_node(proc, stop_signal) -> tuple[str, float]:
+    """Sends stop_signal; (the process's output, seconds until it exited). A node not gone after
+    30 s (it ends itself after EXIT_GRACE_S = 20 s) is killed — never left behind: this
+    process's DDS teardown would wait on it — and the test fails."""
+    t0 = time.monotonic()
+    proc.send_signal(stop_signal)
+    try:
+        out = proc.communicate(timeout=30)[0]
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        out = proc.communicate()[0]
+        pytest.fail(f"the node did not exit within 30 s of {stop_signal.name}:\n{out}")
+    return out, time.monotonic() - t0
+
+
 @pytest.mark.parametrize("stop_signal", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
 def test_entry_point_runs_the_node_in_its_own_process(ros_domain, ros_context, tmp_path, stop_signal):
     """`python -m diffavatar_ros --ros-args --params-file F` as a real second process: it loads
     the parameters, answers a bad scan with its error, and exits cleanly (status 0)
     on SIGINT and on SIGTERM (what launch and systemd send)."""
-    params = tmp_path / "node.yaml"
-    params.write_text(f"/**:\n  ros__parameters:\n    queue_length: 5\n    output_dir: {tmp_path / 'o'}\n")
-    env = {**os.environ, "ROS_DOMAIN_ID": str(ros_domain)}
-    proc = subprocess.Popen([sys.executable, "-m", "diffavatar_ros", "--ros-args", "--params-file", str(params)],
-                            env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    proc = _node_process(tmp_path, ros_domain, f"queue_length: 5\noutput_dir: {tmp_path / 'o'}")
     cli = Client(ros_context)
     try:
         cli.wait_matched(timeout=30)
@@ -597,14 +618,7 @@ def test_entry_point_runs_the_node_in_its_own_process(ros_domain, ros_context, t
         assert (tmp_path / "o" / "remote-bad" / "error.json").exists()
     finally:
         cli.close()
-        proc.send_signal(stop_signal)
-        try:
-            out = proc.communicate(timeout=30)[0]   # the node ends itself after EXIT_GRACE_S = 20 s
-        except subprocess.TimeoutExpired:
-            # never leave a hung peer behind: this process's DDS teardown would wait on it
-            proc.kill()
-            out = proc.communicate()[0]
-            pytest.fail(f"the node did not exit within 30 s of {stop_signal.name}:\n{out}")
+        out, _ = _stop_node(proc, stop_signal)
     assert proc.returncode == 0, out
     assert "FASTDDS_BUILTIN_TRANSPORTS=LARGE_DATA" in out
 
@@ -617,11 +631,7 @@ def test_a_stop_signal_cancels_the_running_and_the_queued_job_then_exits(ros_dom
     from diffavatar_core.demo import SAMPLE
     from diffavatar_core.scan import read_scan_file
     raw = read_scan_file(SAMPLE)
-    params = tmp_path / "node.yaml"
-    params.write_text(f"/**:\n  ros__parameters:\n    output_dir: {tmp_path / 'o'}\n")
-    env = {**os.environ, "ROS_DOMAIN_ID": str(ros_domain)}
-    proc = subprocess.Popen([sys.executable, "-m", "diffavatar_ros", "--ros-args", "--params-file", str(params)],
-                            env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    proc = _node_process(tmp_path, ros_domain, f"output_dir: {tmp_path / 'o'}")
     cli = Client(ros_context)
     try:
         cli.wait_matched(timeout=30)
@@ -642,15 +652,7 @@ def test_a_stop_signal_cancels_the_running_and_the_queued_job_then_exits(ros_dom
                                                  f"{[(p.job_id, p.stage) for p in cli.progress]})")
             time.sleep(0.05)
         assert [p.stage for p in cli.progress_of("waiting")] == ["queued"]
-        t0 = time.monotonic()
-        proc.send_signal(signal.SIGTERM)
-        try:
-            out = proc.communicate(timeout=30)[0]
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            out = proc.communicate()[0]
-            pytest.fail(f"the node did not exit within 30 s of SIGTERM during a job:\n{out}")
-        stopped_in = time.monotonic() - t0
+        out, stopped_in = _stop_node(proc, signal.SIGTERM)
         answer = _wait(goal_result, 5)
     finally:
         cli.close()
