@@ -288,10 +288,12 @@ ControlGradient mixed_product(const EnergyContext& c, const RowMatX3d& x, const 
       s[i] = mu.row(i).dot(f.transpose());
     }
     for (int t = 0; t < m.faces.rows(); ++t) {
-      const int a = m.faces(t, 0), b = m.faces(t, 1), d = m.faces(t, 2);
-      const double w = m.density / 3.0 * (s[a] + s[b] + s[d]);
-      auto dA = triangle_area_gradient(c.control.rest.row(a), c.control.rest.row(b), c.control.rest.row(d));
-      for (int k = 0; k < 3; ++k) g.rest.row(m.faces(t, k)) += w * dA.row(k);
+      Dual<6> u[3][2];   // ∂Ā/∂ū in the pattern frame (an area does not depend on the grain)
+      for (int k = 0; k < 3; ++k)
+        for (int d = 0; d < 2; ++d) u[k][d] = Dual<6>::var(c.control.rest(m.faces(t, k), d), 2 * k + d);
+      const Eigen::Matrix<double, 6, 1> dA = rest_area(u).g;
+      const double w = m.density / 3.0 * (s[m.faces(t, 0)] + s[m.faces(t, 1)] + s[m.faces(t, 2)]);
+      for (int k = 0; k < 3; ++k) g.rest.row(m.faces(t, k)) += w * dA.segment<2>(2 * k).transpose();
     }
   }
   for (const Contact& ct : c.contacts) {

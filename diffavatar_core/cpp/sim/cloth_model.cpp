@@ -6,14 +6,17 @@
 #include <stdexcept>
 #include <string>
 
+#include "sim/stretch_kernel.hpp"
+
 namespace diffavatar {
 
 void set_lumped_masses(ClothModel& m, const RefX2d& rest) {
   const int nv = m.num_vertices;
   VecXd mass = VecXd::Zero(nv);
   for (int t = 0; t < m.faces.rows(); ++t) {
-    Vec2 a = rest.row(m.faces(t, 0)), b = rest.row(m.faces(t, 1)), c = rest.row(m.faces(t, 2));
-    double A = 0.5 * ((b - a).x() * (c - a).y() - (c - a).x() * (b - a).y());
+    double u[3][2];
+    for (int k = 0; k < 3; ++k) { u[k][0] = rest(m.faces(t, k), 0); u[k][1] = rest(m.faces(t, k), 1); }
+    const double A = rest_area(u);
     if (!(A > 0)) throw std::invalid_argument("cloth model: rest triangle " + std::to_string(t) +
                                               " is degenerate or clockwise in the pattern plane");
     for (int k = 0; k < 3; ++k) mass[m.faces(t, k)] += m.density * A / 3.0;

@@ -51,15 +51,6 @@ ClothModel build_cloth_model(int num_vertices, const RefX3i& faces, const RefX2d
 /// `rest` (#V×2, m). Throws std::invalid_argument for a degenerate or clockwise rest triangle.
 void set_lumped_masses(ClothModel& m, const RefX2d& rest);
 
-/// ∂A_t/∂x̄ of a pattern triangle's area A = ½ (b−a)×(c−a), for its three corners (2D, m).
-inline Eigen::Matrix<double, 3, 2> triangle_area_gradient(const Vec2& a, const Vec2& b, const Vec2& c) {
-  Eigen::Matrix<double, 3, 2> g;
-  g << 0.5 * (b.y() - c.y()), 0.5 * (c.x() - b.x()),
-       0.5 * (c.y() - a.y()), 0.5 * (a.x() - c.x()),
-       0.5 * (a.y() - b.y()), 0.5 * (b.x() - a.x());
-  return g;
-}
-
 /// Greedy colouring of constraints given as vertex lists; deterministic (input order).
 std::vector<std::vector<int>> color_constraints(const std::vector<std::vector<int>>& verts, int num_vertices);
 
