@@ -43,6 +43,7 @@ class RecoverOptions:
     output_edge_length: float = 0.0
     output_settle_tol: float = 5e-4
     output_drape_steps: int = 1500
+    output_drape_sweeps: int = 400
     parametrization: str = "cage"
     optimizer: str = "lbfgs"
     bending: str = "garment"
@@ -84,7 +85,7 @@ class RecoverOptions:
         def bad(name, why):
             raise ValueError(f"recover options: {name} {why}, got {getattr(self, name)!r}")
         for name in ("iterations", "samples", "drape_steps", "drape_iterations", "patience", "bending_after",
-                     "body_after", "output_drape_steps", "fresh_every", "reevaluations",
+                     "body_after", "output_drape_steps", "output_drape_sweeps", "fresh_every", "reevaluations",
                      "measurement_fit_iterations"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < 0:
@@ -107,8 +108,9 @@ class RecoverOptions:
         for name in ("optimize_body", "masses_follow_rest"):
             if not isinstance(getattr(self, name), bool):
                 bad(name, "must be true or false")
-        if self.output_drape_steps < 1:
-            bad("output_drape_steps", "must be at least 1")
+        for name in ("output_drape_steps", "output_drape_sweeps"):
+            if getattr(self, name) < 1:
+                bad(name, "must be at least 1")
         if not 0.005 <= self.edge_length <= 0.2:
             bad("edge_length", "must lie in [0.005, 0.2] m")
         o = self.output_edge_length
