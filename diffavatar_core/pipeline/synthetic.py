@@ -95,18 +95,34 @@ def random_body(model: BodyModel, rng, shape_sd: float = 0.5, num_shape: int = 4
 MAX_TOP_DROP = 0.15
 
 
+# The XPBD drape of a fine ground truth (make_case's truth_edge): constraint sweeps per step (4
+# substeps) and its step budget; 400 sweeps leave a ~9k-vertex cloth 0.1% stretched (100: 0.4%)
+FINE_TRUTH_SWEEPS = 400
+FINE_TRUTH_STEPS = 1500
+
+
+def truth_material(bend_stiffness: float, compliance_scale: float = 1.0) -> ClothMaterial:
+    """The ground truth's cloth: bend_stiffness (N·m), the default stretch compliances (m/N) ×
+    compliance_scale."""
+    d = ClothMaterial()
+    return ClothMaterial(bend_stiffness=bend_stiffness, warp_compliance=d.warp_compliance * compliance_scale,
+                         weft_compliance=d.weft_compliance * compliance_scale,
+                         shear_compliance=d.shear_compliance * compliance_scale)
+
+
+def _truth_cloth(g: Garment, x, body, bend_stiffness: float, compliance_scale: float) -> Cloth:
+    return Cloth(g.rest, g.faces, x, seams=g.seams, groups=g.panel[g.faces[:, 0]],
+                 materials=[truth_material(bend_stiffness, compliance_scale)] * len(g.panels), body=body,
+                 grain=g.face_grain())
+
+
 def drape_truth(g: Garment, body, bend_stiffness: float, max_steps: int = 600, cancel=None,
                 compliance_scale: float = 1.0):
     """The ground-truth drape of garment g on body (V, F): (Cloth, DrapeResult); the default
     material's stretch compliances × compliance_scale. Raises RuntimeError when the garment did
     not stay on the body (its top sank more than MAX_TOP_DROP below where it was placed) or the
     drape did not converge."""
-    d = ClothMaterial()
-    mat = ClothMaterial(bend_stiffness=bend_stiffness, warp_compliance=d.warp_compliance * compliance_scale,
-                        weft_compliance=d.weft_compliance * compliance_scale,
-                        shear_compliance=d.shear_compliance * compliance_scale)
-    cloth = Cloth(g.rest, g.faces, g.x0, seams=g.seams, groups=g.panel[g.faces[:, 0]],
-                  materials=[mat] * len(g.panels), body=body, grain=g.face_grain())
+    cloth = _truth_cloth(g, g.x0, body, bend_stiffness, compliance_scale)
     cloth.sew(cancel=cancel)
     r = cloth.drape(max_steps=max_steps, iterations=40, residual_tol=1e-7, refine_iterations=120, raise_on_divergence=False,
                     cancel=cancel)
@@ -117,6 +133,23 @@ def drape_truth(g: Garment, body, bend_stiffness: float, max_steps: int = 600, c
     if not r.converged:
         raise RuntimeError(f"the ground-truth drape did not converge: {r.message}")
     return cloth, r
+
+
+def settle_fine_truth(g: Garment, x, fine: Garment, body, bend_stiffness: float, compliance_scale: float = 1.0,
+                      cancel=None):
+    """The ground truth on a finer mesh `fine` of the same garment g (same template and
+    measurements, another edge length): every fine vertex starts at g's drape x (V, 3) m of its
+    pattern location, pushed out of the body, then XPBD until it stands still (Cloth.settle;
+    Newton stalls on ~10k-vertex buckled cloth). Its folds are those a fine cloth forms, not the
+    coarse mesh's. Returns (Cloth, SettleResult); raises RuntimeError when it does not settle."""
+    from .refine import push_outside, transfer_positions
+    x0 = transfer_positions(g, x, fine)
+    cloth = _truth_cloth(fine, x0, body, bend_stiffness, compliance_scale)
+    cloth.reset(push_outside(x0, body[0], body[1], float(cloth.model.thickness)))
+    s = cloth.settle(max_steps=FINE_TRUTH_STEPS, iterations=FINE_TRUTH_SWEEPS, substeps=4, fast=True, cancel=cancel)
+    if not s.settled:
+        raise RuntimeError(f"the fine ground-truth drape did not settle: {s.message}")
+    return cloth, s
 
 
 def _subdivide(V, F):
@@ -221,9 +254,12 @@ def to_scan_frame(V_core, units: str = "cm", up: str = "y") -> np.ndarray:
 def make_case(template: str = "skirt", seed: int = 0, bend_stiffness: float | None = None,
               measurements: dict | None = None, edge: float = 0.04, units: str = "cm", up: str = "y",
               noise: float = 0.002, holes: int = 3, fragments: int = 3, shape_sd: float = 0.5,
-              max_steps: int = 600, model: BodyModel | None = None) -> SyntheticCase:
+              max_steps: int = 600, model: BodyModel | None = None, truth_edge: float | None = None) -> SyntheticCase:
     """One ground-truth case. Unless given: measurements perturbed ±5–15%, bend stiffness
-    log-uniform in [1e-6, 1e-4] N·m, body shape random (rest pose)."""
+    log-uniform in [1e-6, 1e-4] N·m, body shape random (rest pose). The truth is draped on a mesh
+    of `edge` (m); with truth_edge < edge it is then carried to a mesh of truth_edge and settled
+    there (settle_fine_truth): the truth of a ~10k-vertex output (a 4 cm cloth folds as a 4 cm
+    mesh can, and a 1 cm one does not hang the same way)."""
     if template not in PERTURBED:
         raise ValueError(f"template: synthetic cases exist for {sorted(PERTURBED)}, got {template!r}")
     rng = np.random.default_rng(seed)
@@ -235,10 +271,16 @@ def make_case(template: str = "skirt", seed: int = 0, bend_stiffness: float | No
     g = make_template(template, landmarks=model.landmarks(params), edge_length=edge, **meas)
     cloth, r = drape_truth(g, (bv, bf), k, max_steps)
     x = np.array(cloth.x)
+    drape = {"steps": r.steps, "residual": r.residual, "max_penetration_m": r.max_penetration}
+    if truth_edge is not None and truth_edge < edge:
+        fine = make_template(template, landmarks=model.landmarks(params), edge_length=truth_edge, **meas)
+        cloth, s = settle_fine_truth(g, x, fine, (bv, bf), k)
+        g, x = fine, np.array(cloth.x)
+        drape = {"coarse": drape, "edge_m": truth_edge, "settle": s.to_json()}
     V, F, L = scan_like(x, g.faces, bv, bf, GARMENT_LABEL[template], rng, noise, holes,
                         fragments=fragments, seams=g.seams)
     return SyntheticCase(template, to_scan_frame(V, units, up), F, L, units, up, g, x, meas, k, params, bv, bf,
-                         drape={"steps": r.steps, "residual": r.residual, "max_penetration_m": r.max_penetration})
+                         drape=drape)
 
 
 def write_case(case: SyntheticCase, out_dir) -> pathlib.Path:
