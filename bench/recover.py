@@ -8,7 +8,9 @@ fragments, cm). Recovery starts from the unperturbed template and the default ma
 Variants: full; no_cage (every pattern vertex optimized); no_seam (α = 0); no_curvature (β = 0);
 euclidean (L-BFGS without the H¹ metric on the pattern, sobolev_length 0: a reference run);
 unguided (no scan-guided drapes, guided_stiffness 0: a reference run); no_measurement_fit (the
-handles start on the template's outline, measurement_fit_iterations 0: a reference run).
+handles start on the template's outline, measurement_fit_iterations 0: a reference run);
+fixed_masses (the template's masses throughout); stretch (the stretch compliances optimized too,
+`stretch: garment`; truths with other compliances by --compliance-scales).
 
 With --output-edge the result is carried to a finer output mesh; --truth-edge settles the ground
 truth on a mesh that fine too (a 1 cm cloth does not fold as a 4 cm one: the truth of a 10k output).
@@ -30,11 +32,12 @@ from diffavatar_core.pattern.cage import cage_handles
 from diffavatar_core.pipeline import RecoverOptions, recover
 from diffavatar_core.pipeline.options import Weights
 from diffavatar_core.pipeline.synthetic import make_case
+from diffavatar_core.sim.material import ClothMaterial
 
 VARIANTS = ("full", "no_cage", "no_seam", "no_curvature")
 # not ablations of the paper: the reference runs of the L-BFGS metric before the H¹ one, of the recovery without
 # scan-guided drapes, without the template measurement fit, and with the template's masses throughout
-EXTRA_VARIANTS = ("euclidean", "unguided", "no_measurement_fit", "fixed_masses")
+EXTRA_VARIANTS = ("euclidean", "unguided", "no_measurement_fit", "fixed_masses", "stretch")
 
 
 def corner_edge_lengths(g, corners_from=None) -> list:
@@ -64,6 +67,15 @@ def pattern_edge_error_cm(rec, gt, template=None) -> float:
     return 100 * float(np.mean(np.abs(np.concatenate(a) - np.concatenate(b))))
 
 
+def stretch_log10_error(material, compliance_scale: float) -> float:
+    """Mean |Δlog10| of the warp, weft and shear compliances against the truth's (the default
+    material's × compliance_scale)."""
+    d = ClothMaterial()
+    pairs = ((material.compliance_warp, d.warp_compliance), (material.compliance_weft, d.weft_compliance),
+             (material.compliance_shear, d.shear_compliance))
+    return float(np.mean([abs(math.log10(r / (t * compliance_scale))) for r, t in pairs]))
+
+
 def options_for(variant, iterations, output_edge=0.0):
     o = RecoverOptions.from_config(units="cm", iterations=iterations, output_edge_length=output_edge)
     if variant == "no_cage":
@@ -80,6 +92,8 @@ def options_for(variant, iterations, output_edge=0.0):
         return o.with_(measurement_fit_iterations=0)
     if variant == "fixed_masses":
         return o.with_(masses_follow_rest=False)
+    if variant == "stretch":
+        return o.with_(stretch="garment")
     if variant != "full":
         raise ValueError(f"unknown variant {variant!r}: one of {VARIANTS + EXTRA_VARIANTS}")
     return o
@@ -99,6 +113,7 @@ def run_case(case, variant, iterations, output_edge=0.0):
         "template_area_error_pct": 100 * abs(m["template_area_m2"] - area_gt) / area_gt,
         "pattern_edge_error_cm": pattern_edge_error_cm(r.garment, case.garment, getattr(r, "template", None)),
         "bending_log10_error": abs(math.log10(r.material.bending_stiffness) - math.log10(case.bend_stiffness)),
+        "stretch_log10_error": stretch_log10_error(r.material, case.compliance_scale),
         "body_vertex_error_cm": 100 * float(np.linalg.norm(r.body_vertices - case.body_vertices, axis=1).mean()),
         "mesh_quality_min": m["mesh_quality_min"], "seam_length_mismatch_max_pct": m["seam_length_mismatch_max_pct"],
         "garment_vertices": int(len(r.garment_vertices)), "optimized_vertices": m.get("optimized_vertices"),
@@ -121,12 +136,16 @@ def main():
     ap.add_argument("--output-edge", type=float, default=0.0,
                     help="m; > 0: the result carried to a finer output mesh (coarse-to-fine; e.g. 0.008 ≈ 10k vertices)")
     ap.add_argument("--first-case", type=int, default=0, help="index of the first case (to split runs)")
+    ap.add_argument("--compliance-scales", default="1",
+                    help="comma-separated; case k's truth has the default stretch compliances × scales[k %% len] "
+                         "(for the `stretch` variant, which optimizes them)")
     ap.add_argument("--truth-edge", type=float, default=0.0,
                     help="m; > 0: the ground truth is settled on a mesh of this edge (e.g. 0.01, as the output) "
                          "instead of the 0.04 m the optimization runs on (synthetic.make_case truth_edge)")
     args = ap.parse_args()
     templates = args.templates.split(",")
     variants = args.variants.split(",")
+    scales = [float(v) for v in args.compliance_scales.split(",")]
     out = {"benchmark": "recover", "threads": dc.num_threads(), "cpus": os.cpu_count(),
            "machine": platform.machine(), "iterations": args.iterations, "output_edge_m": args.output_edge,
            "truth_edge_m": args.truth_edge or None,
@@ -136,16 +155,18 @@ def main():
         tpl = templates[k % len(templates)]
         # bending spread over two decades across the cases
         bend = 10 ** (-6 + 2 * k / max(args.cases - 1, 1))
-        case = make_case(tpl, seed=100 + k, bend_stiffness=bend, truth_edge=args.truth_edge or None)
+        scale = scales[k % len(scales)]
+        case = make_case(tpl, seed=100 + k, bend_stiffness=bend, truth_edge=args.truth_edge or None,
+                         compliance_scale=scale)
         entry = {"template": tpl, "seed": 100 + k, "truth": {"measurements_m": case.measurements,
-                                                             "bend_stiffness_Nm": bend}}
+                                                             "bend_stiffness_Nm": bend, "compliance_scale": scale}}
         for v in variants:
             entry[v] = run_case(case, v, args.iterations, args.output_edge)
             per_variant[v].append(entry[v])
         out["cases"].append(entry)
         print(json.dumps(entry), flush=True)
     keys = ("chamfer_ratio", "chamfer_ratio_optimized", "chamfer_final_cm", "pattern_area_error_pct", "pattern_edge_error_cm",
-            "bending_log10_error", "body_vertex_error_cm", "mesh_quality_min", "wall_s", "cpu_s", "iterations",
+            "bending_log10_error", "stretch_log10_error", "body_vertex_error_cm", "mesh_quality_min", "wall_s", "cpu_s", "iterations",
             "garment_vertices")
     out["mean"] = {v: {k: float(np.nanmean([r[k] for r in rs])) for k in keys} for v, rs in per_variant.items()}
     out["targets"] = {"chamfer_ratio": "<= 0.35", "pattern_area_error_pct": "<= 3", "bending_log10_error": "<= 0.15",

@@ -37,7 +37,8 @@ class SyntheticCase:
     """scan_vertices (N, 3) in `units` with `up` vertical; scan_faces (M, 3); scan_labels (N,)
     (0 = body, the garment's class value otherwise). Ground truth: garment (the perturbed
     template, draped positions in garment_x (V, 3) m), measurements (m), bend_stiffness (N·m),
-    body_params / body_vertices (m)."""
+    compliance_scale (the stretch compliances: the default material's × this), body_params /
+    body_vertices (m)."""
     template: str
     scan_vertices: np.ndarray
     scan_faces: np.ndarray
@@ -52,6 +53,7 @@ class SyntheticCase:
     body_vertices: np.ndarray
     body_faces: np.ndarray
     drape: dict = field(default_factory=dict)
+    compliance_scale: float = 1.0
 
     def garment_scan(self) -> tuple[np.ndarray, np.ndarray]:
         """(vertices, faces) of the scan's garment-labelled part (a garment-only scan, in
@@ -64,7 +66,8 @@ class SyntheticCase:
     def truth_json(self) -> dict:
         p = self.body_params
         return {"template": self.template, "measurements_m": self.measurements,
-                "bend_stiffness_Nm": self.bend_stiffness, "pattern_area_m2": self.garment.total_area(),
+                "bend_stiffness_Nm": self.bend_stiffness, "compliance_scale": self.compliance_scale,
+                "pattern_area_m2": self.garment.total_area(),
                 "body": {"shape": p.shape.tolist(), "pose": p.pose.tolist(), "bone_scales": p.bone_scales.tolist(),
                          "rotation": p.rotation.tolist(), "translation": p.translation.tolist()},
                 "drape": self.drape, "units": self.units, "up": self.up}
@@ -254,9 +257,11 @@ def to_scan_frame(V_core, units: str = "cm", up: str = "y") -> np.ndarray:
 def make_case(template: str = "skirt", seed: int = 0, bend_stiffness: float | None = None,
               measurements: dict | None = None, edge: float = 0.04, units: str = "cm", up: str = "y",
               noise: float = 0.002, holes: int = 3, fragments: int = 3, shape_sd: float = 0.5,
-              max_steps: int = 600, model: BodyModel | None = None, truth_edge: float | None = None) -> SyntheticCase:
+              max_steps: int = 600, model: BodyModel | None = None, truth_edge: float | None = None,
+              compliance_scale: float = 1.0) -> SyntheticCase:
     """One ground-truth case. Unless given: measurements perturbed ±5–15%, bend stiffness
-    log-uniform in [1e-6, 1e-4] N·m, body shape random (rest pose). The truth is draped on a mesh
+    log-uniform in [1e-6, 1e-4] N·m, body shape random (rest pose), the default stretch
+    compliances (× compliance_scale). The truth is draped on a mesh
     of `edge` (m); with truth_edge < edge it is then carried to a mesh of truth_edge and settled
     there (settle_fine_truth): the truth of a ~10k-vertex output (a 4 cm cloth folds as a 4 cm
     mesh can, and a 1 cm one does not hang the same way)."""
@@ -269,18 +274,18 @@ def make_case(template: str = "skirt", seed: int = 0, bend_stiffness: float | No
     params = random_body(model, rng, shape_sd)
     bv, bf = model.pose(params), np.asarray(model.faces)
     g = make_template(template, landmarks=model.landmarks(params), edge_length=edge, **meas)
-    cloth, r = drape_truth(g, (bv, bf), k, max_steps)
+    cloth, r = drape_truth(g, (bv, bf), k, max_steps, compliance_scale=compliance_scale)
     x = np.array(cloth.x)
     drape = {"steps": r.steps, "residual": r.residual, "max_penetration_m": r.max_penetration}
     if truth_edge is not None and truth_edge < edge:
         fine = make_template(template, landmarks=model.landmarks(params), edge_length=truth_edge, **meas)
-        cloth, s = settle_fine_truth(g, x, fine, (bv, bf), k)
+        cloth, s = settle_fine_truth(g, x, fine, (bv, bf), k, compliance_scale)
         g, x = fine, np.array(cloth.x)
         drape = {"coarse": drape, "edge_m": truth_edge, "settle": s.to_json()}
     V, F, L = scan_like(x, g.faces, bv, bf, GARMENT_LABEL[template], rng, noise, holes,
                         fragments=fragments, seams=g.seams)
     return SyntheticCase(template, to_scan_frame(V, units, up), F, L, units, up, g, x, meas, k, params, bv, bf,
-                         drape=drape)
+                         drape=drape, compliance_scale=float(compliance_scale))
 
 
 def write_case(case: SyntheticCase, out_dir) -> pathlib.Path:

@@ -1,0 +1,38 @@
+"""Synthetic ground-truth cases (pipeline/synthetic.py), the benchmark's and the tests' scans:
+what each option of make_case changes in the truth."""
+import numpy as np
+import pytest
+
+from diffavatar_core.body import BodyModel
+from diffavatar_core.metrics import chamfer_meshes
+from diffavatar_core.pipeline.synthetic import make_case
+from diffavatar_core.scan.frame import ScanTransform
+
+
+def test_a_fine_ground_truth_is_the_same_garment_settled_on_a_finer_mesh():
+    """make_case(truth_edge=...): the same measurements, bending and body as the coarse truth of
+    the same seed, on a mesh of truth_edge settled on the body; the scan is made from that drape
+    (its garment surface within the scan's noise of it)."""
+    model = BodyModel.default()
+    coarse = make_case("skirt", seed=3, edge=0.07, model=model)
+    fine = make_case("skirt", seed=3, edge=0.07, truth_edge=0.035, model=model)
+    assert fine.measurements == coarse.measurements and fine.bend_stiffness == coarse.bend_stiffness
+    np.testing.assert_array_equal(fine.body_params.shape, coarse.body_params.shape)
+    assert len(fine.garment.rest) > 2.5 * len(coarse.garment.rest)
+    assert fine.garment.total_area() == pytest.approx(coarse.garment.total_area(), rel=0.02)
+    assert fine.drape["edge_m"] == 0.035 and fine.drape["settle"]["settled"]
+    V, F = fine.garment_scan()
+    V = ScanTransform.from_options(fine.units, fine.up).to_core(V)
+    d_fine = chamfer_meshes(fine.garment_x, fine.garment.faces, V, F)
+    assert d_fine < 0.0025, d_fine   # 2 mm normal noise, holes, fragments: 1.4 mm (the coarse truth: 6.1 mm)
+
+
+
+def test_a_softer_ground_truth_hangs_lower():
+    """compliance_scale scales the truth's three stretch compliances: the same skirt under the
+    same weight stretches further and hangs lower the softer it is (mean height, m)."""
+    model = BodyModel.default()
+    cases = [make_case("skirt", seed=3, edge=0.07, model=model, compliance_scale=s) for s in (0.5, 1.0, 3.0)]
+    heights = [float(c.garment_x[:, 1].mean()) for c in cases]
+    assert heights[0] > heights[1] + 0.005 and heights[1] > heights[2] + 0.005, heights
+    assert [c.truth_json()["compliance_scale"] for c in cases] == [0.5, 1.0, 3.0]
