@@ -87,7 +87,7 @@ class CoOptObjective:
         self.loops = {k: v for k, v in garment.boundaries.items() if k in scan_loops}
         # scan opening perimeters (m) and how far they are trusted (± m)
         spacing = opts.edge_length if opts.length_measure == "resampled" else 0.0
-        self.scan_lengths = {k: polyline_length(scan_loops[k], spacing) for k in self.loops}
+        self.scan_lengths = {k: polyline_length(scan_loops[k], spacing, opts.length_smoothing) for k in self.loops}
         self.length_tol = {k: max(opts.length_tolerance_min, 0.01 * opts.length_tolerance_pct * L)
                            for k, L in self.scan_lengths.items()}
         self.c0 = cloth.control

@@ -220,6 +220,8 @@ def test_options_from_node_dict_and_config():
         RecoverOptions.from_config(output_drape_steps=0)
     with pytest.raises(ValueError, match="output_drape_sweeps"):
         RecoverOptions.from_config(output_drape_sweeps=0)
+    with pytest.raises(ValueError, match="length_smoothing"):
+        RecoverOptions.from_config(length_smoothing=-0.001)
     with pytest.raises(ValueError, match="optimizer"):
         RecoverOptions.from_config(optimizer="sgd")
     with pytest.raises(ValueError, match="bending_after"):
