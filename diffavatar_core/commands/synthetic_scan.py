@@ -11,6 +11,10 @@ def register(sub) -> None:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--edge", type=float, default=0.04, help="garment mesh edge length (m)")
     p.add_argument("--bend", type=float, default=None, help="bending stiffness (N·m); default log-uniform 1e-6..1e-4")
+    p.add_argument("--truth-edge", type=float, default=None,
+                   help="m; finer than --edge: the truth is then settled on a mesh of this edge (e.g. 0.01, ~10k vertices)")
+    p.add_argument("--compliance-scale", type=float, default=1.0,
+                   help="the truth's stretch compliances: the default material's × this")
     p.add_argument("--units", default="cm", choices=("m", "cm", "mm"))
     p.add_argument("--up", default="y", choices=("y", "z"))
     p.add_argument("--out", required=True)
@@ -20,7 +24,7 @@ def register(sub) -> None:
 def _run(args) -> int:
     from ..pipeline.synthetic import make_case, write_case
     case = make_case(args.template, seed=args.seed, bend_stiffness=args.bend, edge=args.edge, units=args.units,
-                     up=args.up)
+                     up=args.up, truth_edge=args.truth_edge, compliance_scale=args.compliance_scale)
     path = write_case(case, args.out)
     print(json.dumps({"scan": str(path), "vertices": int(len(case.scan_vertices)),
                       "faces": int(len(case.scan_faces)), **case.truth_json()}, indent=2))

@@ -267,6 +267,10 @@ def make_case(template: str = "skirt", seed: int = 0, bend_stiffness: float | No
     mesh can, and a 1 cm one does not hang the same way)."""
     if template not in PERTURBED:
         raise ValueError(f"template: synthetic cases exist for {sorted(PERTURBED)}, got {template!r}")
+    if truth_edge is not None and not 0.005 <= truth_edge < edge:
+        raise ValueError(f"truth_edge: expected a length in [0.005, edge = {edge}) m, got {truth_edge}")
+    if not (np.isfinite(compliance_scale) and compliance_scale > 0):
+        raise ValueError(f"compliance_scale: expected a positive factor, got {compliance_scale}")
     rng = np.random.default_rng(seed)
     model = model or BodyModel.default()
     meas = perturbed_measurements(template, rng) if measurements is None else dict(measurements)
@@ -277,7 +281,7 @@ def make_case(template: str = "skirt", seed: int = 0, bend_stiffness: float | No
     cloth, r = drape_truth(g, (bv, bf), k, max_steps, compliance_scale=compliance_scale)
     x = np.array(cloth.x)
     drape = {"steps": r.steps, "residual": r.residual, "max_penetration_m": r.max_penetration}
-    if truth_edge is not None and truth_edge < edge:
+    if truth_edge is not None:
         fine = make_template(template, landmarks=model.landmarks(params), edge_length=truth_edge, **meas)
         cloth, s = settle_fine_truth(g, x, fine, (bv, bf), k, compliance_scale)
         g, x = fine, np.array(cloth.x)

@@ -36,3 +36,10 @@ def test_a_softer_ground_truth_hangs_lower():
     heights = [float(c.garment_x[:, 1].mean()) for c in cases]
     assert heights[0] > heights[1] + 0.005 and heights[1] > heights[2] + 0.005, heights
     assert [c.truth_json()["compliance_scale"] for c in cases] == [0.5, 1.0, 3.0]
+
+
+def test_bad_truth_options_are_named():
+    with pytest.raises(ValueError, match="truth_edge"):
+        make_case("skirt", seed=0, edge=0.04, truth_edge=0.05)
+    with pytest.raises(ValueError, match="compliance_scale"):
+        make_case("skirt", seed=0, compliance_scale=0.0)
