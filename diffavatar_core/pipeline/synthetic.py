@@ -17,6 +17,7 @@ from ..pattern.garment import Garment
 from ..pattern.templates import make_template
 from ..sim.cloth import Cloth
 from ..sim.material import ClothMaterial
+from .refine import push_outside, transfer_positions
 
 # the measurements each template's ground truth perturbs (fields of Top/SkirtMeasurements)
 PERTURBED = {"skirt": ("length", "hem_width"),
@@ -145,7 +146,6 @@ def settle_fine_truth(g: Garment, x, fine: Garment, body, bend_stiffness: float,
     pattern location, pushed out of the body, then XPBD until it stands still (Cloth.settle;
     Newton stalls on ~10k-vertex buckled cloth). Its folds are those a fine cloth forms, not the
     coarse mesh's. Returns (Cloth, SettleResult); raises RuntimeError when it does not settle."""
-    from .refine import push_outside, transfer_positions
     x0 = transfer_positions(g, x, fine)
     cloth = _truth_cloth(fine, x0, body, bend_stiffness, compliance_scale)
     cloth.reset(push_outside(x0, body[0], body[1], float(cloth.model.thickness)))
