@@ -156,8 +156,14 @@ def main():
         # bending spread over two decades across the cases
         bend = 10 ** (-6 + 2 * k / max(args.cases - 1, 1))
         scale = scales[k % len(scales)]
-        case = make_case(tpl, seed=100 + k, bend_stiffness=bend, truth_edge=args.truth_edge or None,
-                         compliance_scale=scale)
+        try:
+            case = make_case(tpl, seed=100 + k, bend_stiffness=bend, truth_edge=args.truth_edge or None,
+                             compliance_scale=scale)
+        except RuntimeError as exc:   # a truth that slid off or did not converge: no case, said so
+            skipped = {"template": tpl, "seed": 100 + k, "skipped": str(exc), "compliance_scale": scale}
+            out.setdefault("skipped", []).append(skipped)
+            print(json.dumps(skipped), flush=True)
+            continue
         entry = {"template": tpl, "seed": 100 + k, "truth": {"measurements_m": case.measurements,
                                                              "bend_stiffness_Nm": bend, "compliance_scale": scale}}
         for v in variants:
