@@ -31,8 +31,7 @@ import diffavatar_core as dc
 from diffavatar_core.pattern.cage import cage_handles
 from diffavatar_core.pipeline import RecoverOptions, recover
 from diffavatar_core.pipeline.options import Weights
-from diffavatar_core.pipeline.synthetic import make_case
-from diffavatar_core.sim.material import ClothMaterial
+from diffavatar_core.pipeline.synthetic import make_case, truth_material
 
 VARIANTS = ("full", "no_cage", "no_seam", "no_curvature")
 # not ablations of the paper: the reference runs of the L-BFGS metric before the H¹ one, of the recovery without
@@ -67,13 +66,12 @@ def pattern_edge_error_cm(rec, gt, template=None) -> float:
     return 100 * float(np.mean(np.abs(np.concatenate(a) - np.concatenate(b))))
 
 
-def stretch_log10_error(material, compliance_scale: float) -> float:
-    """Mean |Δlog10| of the warp, weft and shear compliances against the truth's (the default
-    material's × compliance_scale)."""
-    d = ClothMaterial()
-    pairs = ((material.compliance_warp, d.warp_compliance), (material.compliance_weft, d.weft_compliance),
-             (material.compliance_shear, d.shear_compliance))
-    return float(np.mean([abs(math.log10(r / (t * compliance_scale))) for r, t in pairs]))
+def stretch_log10_error(material, case) -> float:
+    """Mean |Δlog10| of the warp, weft and shear compliances against the case's truth's."""
+    t = truth_material(case.bend_stiffness, case.compliance_scale)
+    pairs = ((material.compliance_warp, t.warp_compliance), (material.compliance_weft, t.weft_compliance),
+             (material.compliance_shear, t.shear_compliance))
+    return float(np.mean([abs(math.log10(r / w)) for r, w in pairs]))
 
 
 def options_for(variant, iterations, output_edge=0.0):
@@ -113,7 +111,7 @@ def run_case(case, variant, iterations, output_edge=0.0):
         "template_area_error_pct": 100 * abs(m["template_area_m2"] - area_gt) / area_gt,
         "pattern_edge_error_cm": pattern_edge_error_cm(r.garment, case.garment, getattr(r, "template", None)),
         "bending_log10_error": abs(math.log10(r.material.bending_stiffness) - math.log10(case.bend_stiffness)),
-        "stretch_log10_error": stretch_log10_error(r.material, case.compliance_scale),
+        "stretch_log10_error": stretch_log10_error(r.material, case),
         "body_vertex_error_cm": 100 * float(np.linalg.norm(r.body_vertices - case.body_vertices, axis=1).mean()),
         "mesh_quality_min": m["mesh_quality_min"], "seam_length_mismatch_max_pct": m["seam_length_mismatch_max_pct"],
         "garment_vertices": int(len(r.garment_vertices)), "optimized_vertices": m.get("optimized_vertices"),

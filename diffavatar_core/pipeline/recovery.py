@@ -33,12 +33,11 @@ from ..pattern.templates import FIT_MEASUREMENTS, TEMPLATES, make_template
 from ..scan import ScanData, load_scan
 from ..scan.errors import ScanError
 from ..sim.cloth import Cloth
-from ..sim.drape_job import SUBSTEPS
 from ..sim.material import ClothMaterial
 from .coopt import co_optimize, seam_mismatch_pct
 from .measurement_fit import MeasurementMap
 from .options import RecoverOptions
-from .refine import push_outside, transfer_pattern, transfer_positions
+from .refine import settle_carried, transfer_pattern, transfer_positions
 from .result import BodyAssets, MaterialAssets, RecoveryResult
 
 STAGES = ("preprocess", "body", "drape", "optimize", "refine", "metrics")
@@ -178,9 +177,8 @@ def _fine_output(g, cage, co, fine: Garment, material, body_vertices, body_faces
     rest = transfer_pattern(g, cage, co.rest[cage.handles], fine)   # MVC interpolate: ζ = x̄[handles]
     x0 = transfer_positions(g, co.x, fine)
     cloth = _garment_cloth(fine, rest, x0, material, (body_vertices, body_faces), co.bend_stiffness)
-    cloth.reset(push_outside(x0, body_vertices, body_faces, float(cloth.model.thickness)))
-    s = cloth.settle(max_steps=opts.output_drape_steps, displacement_tol=opts.output_settle_tol,
-                     iterations=opts.output_drape_sweeps, substeps=SUBSTEPS, fast=True, cancel=cancel)
+    s = settle_carried(cloth, x0, body_vertices, body_faces, opts.output_drape_steps, opts.output_drape_sweeps,
+                       opts.output_settle_tol, cancel)
     if not s.settled:
         raise ValueError(s.message)
     return fine, rest, np.array(cloth.x), s

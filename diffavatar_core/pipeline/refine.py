@@ -14,6 +14,7 @@ import numpy as np
 from .. import _core
 from ..pattern.cage import ControlCage, mean_value_coordinates
 from ..pattern.garment import Garment
+from ..sim.drape_job import SUBSTEPS
 
 
 def transfer_pattern(coarse: Garment, cage: ControlCage, zeta, fine: Garment) -> np.ndarray:
@@ -61,3 +62,15 @@ def push_outside(x, body_vertices, body_faces, thickness: float) -> np.ndarray:
     near = ((x - cp) * n).sum(1) < thickness
     x[near] = cp[near] + thickness * n[near]
     return x
+
+
+def settle_carried(cloth, x0, body_vertices, body_faces, max_steps: int, sweeps: int,
+                   displacement_tol: float = 5e-4, cancel=None):
+    """`cloth` (a sim.Cloth of a fine mesh) reset to x0 (V, 3) m — a coarse drape carried to its
+    vertices (transfer_positions) — pushed out of the body, then draped by XPBD (single-
+    precision sweeps, SUBSTEPS substeps, `sweeps` sweeps per step) until it stands still:
+    Cloth.settle, no vertex moving more than displacement_tol (m) in 0.5 s. Returns its
+    SettleResult. Shared by the fine output (recovery) and the fine ground truth (synthetic)."""
+    cloth.reset(push_outside(x0, body_vertices, body_faces, float(cloth.model.thickness)))
+    return cloth.settle(max_steps=max_steps, displacement_tol=displacement_tol, iterations=sweeps,
+                        substeps=SUBSTEPS, fast=True, cancel=cancel)

@@ -17,7 +17,8 @@ from ..pattern.garment import Garment
 from ..pattern.templates import make_template
 from ..sim.cloth import Cloth
 from ..sim.material import ClothMaterial
-from .refine import push_outside, transfer_positions
+from .options import RecoverOptions
+from .refine import settle_carried, transfer_positions
 
 # the measurements each template's ground truth perturbs (fields of Top/SkirtMeasurements)
 PERTURBED = {"skirt": ("length", "hem_width"),
@@ -99,9 +100,8 @@ def random_body(model: BodyModel, rng, shape_sd: float = 0.5, num_shape: int = 4
 MAX_TOP_DROP = 0.15
 
 
-# The XPBD drape of a fine ground truth (make_case's truth_edge): constraint sweeps per step (4
-# substeps) and its step budget; 400 sweeps leave a ~9k-vertex cloth 0.1% stretched (100: 0.4%)
-FINE_TRUTH_SWEEPS = 400
+# XPBD steps at most for a fine ground truth's settle (make_case's truth_edge); it is settled as
+# the recovery settles its fine output (refine.settle_carried, the same sweeps per step)
 FINE_TRUTH_STEPS = 1500
 
 
@@ -148,8 +148,8 @@ def settle_fine_truth(g: Garment, x, fine: Garment, body, bend_stiffness: float,
     coarse mesh's. Returns (Cloth, SettleResult); raises RuntimeError when it does not settle."""
     x0 = transfer_positions(g, x, fine)
     cloth = _truth_cloth(fine, x0, body, bend_stiffness, compliance_scale)
-    cloth.reset(push_outside(x0, body[0], body[1], float(cloth.model.thickness)))
-    s = cloth.settle(max_steps=FINE_TRUTH_STEPS, iterations=FINE_TRUTH_SWEEPS, substeps=4, fast=True, cancel=cancel)
+    s = settle_carried(cloth, x0, body[0], body[1], FINE_TRUTH_STEPS, RecoverOptions.output_drape_sweeps,
+                       cancel=cancel)
     if not s.settled:
         raise RuntimeError(f"the fine ground-truth drape did not settle: {s.message}")
     return cloth, s
