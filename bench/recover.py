@@ -74,8 +74,10 @@ def stretch_log10_error(material, case) -> float:
     return float(np.mean([abs(math.log10(r / w)) for r, w in pairs]))
 
 
-def options_for(variant, iterations, output_edge=0.0):
+def options_for(variant, iterations, output_edge=0.0, friction=None):
     o = RecoverOptions.from_config(units="cm", iterations=iterations, output_edge_length=output_edge)
+    if friction is not None:
+        o = o.with_(output_friction=friction)
     if variant == "no_cage":
         return o.with_(parametrization="vertices")
     if variant == "no_seam":
@@ -97,9 +99,10 @@ def options_for(variant, iterations, output_edge=0.0):
     return o
 
 
-def run_case(case, variant, iterations, output_edge=0.0):
+def run_case(case, variant, iterations, output_edge=0.0, friction=None):
     t0, c0 = time.perf_counter(), time.process_time()
-    r = recover((case.scan_vertices, case.scan_faces, case.scan_labels), options_for(variant, iterations, output_edge))
+    r = recover((case.scan_vertices, case.scan_faces, case.scan_labels),
+                options_for(variant, iterations, output_edge, friction))
     m = r.metrics
     area_gt = case.garment.total_area()
     return {
@@ -140,6 +143,9 @@ def main():
     ap.add_argument("--truth-edge", type=float, default=0.0,
                     help="m; > 0: the ground truth is settled on a mesh of this edge (e.g. 0.01, as the output) "
                          "instead of the 0.04 m the optimization runs on (synthetic.make_case truth_edge)")
+    ap.add_argument("--friction", type=float, default=None,
+                    help="Coulomb μ of the fine drapes (the fine truth's settle and the output's); "
+                         "default: the config's output_friction")
     args = ap.parse_args()
     templates = args.templates.split(",")
     variants = args.variants.split(",")
@@ -147,6 +153,7 @@ def main():
     out = {"benchmark": "recover", "threads": dc.num_threads(), "cpus": os.cpu_count(),
            "machine": platform.machine(), "iterations": args.iterations, "output_edge_m": args.output_edge,
            "truth_edge_m": args.truth_edge or None,
+           "friction": RecoverOptions.from_config().output_friction if args.friction is None else args.friction,
            "optimizer": RecoverOptions.from_config().optimizer, "cases": []}
     per_variant = {v: [] for v in variants}
     for k in range(args.first_case, args.cases):
@@ -156,7 +163,7 @@ def main():
         scale = scales[k % len(scales)]
         try:
             case = make_case(tpl, seed=100 + k, bend_stiffness=bend, truth_edge=args.truth_edge or None,
-                             compliance_scale=scale)
+                             compliance_scale=scale, friction=args.friction)
         except RuntimeError as exc:   # a truth that slid off or did not converge: no case, said so
             skipped = {"template": tpl, "seed": 100 + k, "skipped": str(exc), "compliance_scale": scale}
             out.setdefault("skipped", []).append(skipped)
@@ -165,7 +172,7 @@ def main():
         entry = {"template": tpl, "seed": 100 + k, "truth": {"measurements_m": case.measurements,
                                                              "bend_stiffness_Nm": bend, "compliance_scale": scale}}
         for v in variants:
-            entry[v] = run_case(case, v, args.iterations, args.output_edge)
+            entry[v] = run_case(case, v, args.iterations, args.output_edge, args.friction)
             per_variant[v].append(entry[v])
         out["cases"].append(entry)
         print(json.dumps(entry), flush=True)

@@ -44,6 +44,7 @@ class RecoverOptions:
     output_settle_tol: float = 5e-4
     output_drape_steps: int = 1500
     output_drape_sweeps: int = 400
+    output_friction: float = 0.0
     parametrization: str = "cage"
     optimizer: str = "lbfgs"
     bending: str = "garment"
@@ -99,7 +100,7 @@ class RecoverOptions:
         if self.length_measure not in ("raw", "resampled"):
             bad("length_measure", "must be raw or resampled")
         for name in ("length_tolerance_pct", "length_tolerance_min", "sobolev_length", "reevaluate_tol",
-                     "guided_stiffness", "length_smoothing"):
+                     "guided_stiffness", "length_smoothing", "output_friction"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
                 bad(name, "must be a number >= 0")

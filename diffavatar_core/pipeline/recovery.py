@@ -178,7 +178,7 @@ def _fine_output(g, cage, co, fine: Garment, material, body_vertices, body_faces
     x0 = transfer_positions(g, co.x, fine)
     cloth = _garment_cloth(fine, rest, x0, material, (body_vertices, body_faces), co.bend_stiffness)
     s = settle_carried(cloth, x0, body_vertices, body_faces, opts.output_drape_steps, opts.output_drape_sweeps,
-                       opts.output_settle_tol, cancel)
+                       opts.output_settle_tol, cancel, opts.output_friction)
     if not s.settled:
         raise ValueError(s.message)
     return fine, rest, np.array(cloth.x), s

@@ -140,16 +140,19 @@ def drape_truth(g: Garment, body, bend_stiffness: float, max_steps: int = 600, c
 
 
 def settle_fine_truth(g: Garment, x, fine: Garment, body, bend_stiffness: float, compliance_scale: float = 1.0,
-                      cancel=None):
+                      cancel=None, friction: float | None = None):
     """The ground truth on a finer mesh `fine` of the same garment g (same template and
     measurements, another edge length): every fine vertex starts at g's drape x (V, 3) m of its
     pattern location, pushed out of the body, then XPBD until it stands still (Cloth.settle;
     Newton stalls on ~10k-vertex buckled cloth). Its folds are those a fine cloth forms, not the
-    coarse mesh's. Returns (Cloth, SettleResult); raises RuntimeError when it does not settle."""
+    coarse mesh's. friction: Coulomb μ of the settle (None: the recovery's output_friction, so the
+    truth is settled as the output is). Returns (Cloth, SettleResult); raises RuntimeError when it
+    does not settle."""
     x0 = transfer_positions(g, x, fine)
     cloth = _truth_cloth(fine, x0, body, bend_stiffness, compliance_scale)
+    mu = RecoverOptions.output_friction if friction is None else friction
     s = settle_carried(cloth, x0, body[0], body[1], FINE_TRUTH_STEPS, RecoverOptions.output_drape_sweeps,
-                       cancel=cancel)
+                       cancel=cancel, friction=mu)
     if not s.settled:
         raise RuntimeError(f"the fine ground-truth drape did not settle: {s.message}")
     return cloth, s
@@ -258,7 +261,7 @@ def make_case(template: str = "skirt", seed: int = 0, bend_stiffness: float | No
               measurements: dict | None = None, edge: float = 0.04, units: str = "cm", up: str = "y",
               noise: float = 0.002, holes: int = 3, fragments: int = 3, shape_sd: float = 0.5,
               max_steps: int = 600, model: BodyModel | None = None, truth_edge: float | None = None,
-              compliance_scale: float = 1.0) -> SyntheticCase:
+              compliance_scale: float = 1.0, friction: float | None = None) -> SyntheticCase:
     """One ground-truth case. Unless given: measurements perturbed ±5–15%, bend stiffness
     log-uniform in [1e-6, 1e-4] N·m, body shape random (rest pose), the default stretch
     compliances (× compliance_scale). The truth is draped on a mesh
@@ -283,7 +286,7 @@ def make_case(template: str = "skirt", seed: int = 0, bend_stiffness: float | No
     drape = {"steps": r.steps, "residual": r.residual, "max_penetration_m": r.max_penetration}
     if truth_edge is not None:
         fine = make_template(template, landmarks=model.landmarks(params), edge_length=truth_edge, **meas)
-        cloth, s = settle_fine_truth(g, x, fine, (bv, bf), k, compliance_scale)
+        cloth, s = settle_fine_truth(g, x, fine, (bv, bf), k, compliance_scale, friction=friction)
         g, x = fine, np.array(cloth.x)
         drape = {"coarse": drape, "edge_m": truth_edge, "settle": s.to_json()}
     V, F, L = scan_like(x, g.faces, bv, bf, GARMENT_LABEL[template], rng, noise, holes,

@@ -57,9 +57,12 @@ class SettleResult:
                 "message": self.message}
 
 
-def _sim_params(dt, iterations, gravity, damping, contact_radius, max_speed, fast=False):
+def _sim_params(dt, iterations, gravity, damping, contact_radius, max_speed, fast=False, friction=0.0):
     p = _core.SimParams()
     p.fast = bool(fast)
+    if not (np.isfinite(friction) and friction >= 0):
+        raise ValueError(f"friction: expected a Coulomb coefficient >= 0 (dimensionless), got {friction}")
+    p.friction = float(friction)
     if not (np.isfinite(dt) and dt > 0):
         raise ValueError(f"dt: expected a time step > 0 s, got {dt}")
     p.dt = float(dt)
@@ -190,11 +193,14 @@ class Cloth:
 
     # --- Simulation ---------------------------------------------------------------------------
     def step(self, n: int = 1, dt: float = 1 / 120, iterations: int = 100, gravity=(0, -9.81, 0),
-             damping: float = 4.0, contact_radius: float = 0.01, max_speed: float = 50.0, fast: bool = False) -> float:
+             damping: float = 4.0, contact_radius: float = 0.01, max_speed: float = 50.0, fast: bool = False,
+             friction: float = 0.0) -> float:
         """n XPBD steps; returns the max vertex speed (m/s) after the last one. fast: the sweeps in
         single precision, vectorised (sim/fast_sweep.hpp; 6× faster with AVX-512, float round-off,
-        the state's multipliers stay zero): for drapes, not for anything differentiated."""
-        p = _sim_params(dt, iterations, gravity, damping, contact_radius, max_speed, fast)
+        the state's multipliers stay zero): for drapes, not for anything differentiated.
+        friction: Coulomb coefficient μ of the cloth on the body (dimensionless; 0 = frictionless;
+        sim/friction_kernel.hpp), forward only — the adjoints differentiate frictionless steps."""
+        p = _sim_params(dt, iterations, gravity, damping, contact_radius, max_speed, fast, friction)
         return self.solver.step(self.state, p, _validate.positive_int("n", n))
 
     def sew(self, max_steps: int = 60, gap_tol: float = 1e-3, iterations: int = 100, min_gap: float = 0.05,
@@ -230,7 +236,8 @@ class Cloth:
               refine: bool = True, residual_tol: float = 1e-5, refine_iterations: int = 200, anchor_stiffness: float = 1.0,
               dt: float = 1 / 120, iterations: int = 100, gravity=(0, -9.81, 0), damping: float = 4.0,
               contact_radius: float = 0.01, max_speed: float = 50.0, progress=None, cancel=None,
-              raise_on_divergence: bool = True, substeps: int = 1, fast: bool = False) -> DrapeResult:
+              raise_on_divergence: bool = True, substeps: int = 1, fast: bool = False,
+              friction: float = 0.0) -> DrapeResult:
         """Quasi-static drape: XPBD until every vertex is slower than speed_tol (m/s) or
         max_steps steps of dt (s; each made of `substeps` XPBD steps of dt/substeps with
         iterations/substeps sweeps: as many sweeps, a stiffer cloth on fine meshes), then
@@ -239,9 +246,10 @@ class Cloth:
         of the collision thickness; anchor_stiffness κ (1/s²) ties each vertex to its settled
         position with a spring of stiffness κ·m (a static-friction proxy that also removes the
         zero-energy sliding modes of a frictionless contact). fast: the XPBD phase's sweeps in
-        single precision, vectorised (as in step; the Newton refinement stays in double). Releases
-        the GIL; progress(ProgressEvent); cancel: CancelToken."""
-        p = _sim_params(dt, iterations, gravity, damping, contact_radius, max_speed, fast)
+        single precision, vectorised (as in step; the Newton refinement stays in double). friction:
+        Coulomb μ of the XPBD phase (as in step; the refinement's friction is the anchor springs).
+        Releases the GIL; progress(ProgressEvent); cancel: CancelToken."""
+        p = _sim_params(dt, iterations, gravity, damping, contact_radius, max_speed, fast, friction)
         self.params = p
         d = _core.DrapeParams()
         d.max_steps = _validate.positive_int("max_steps", max_steps)
@@ -277,7 +285,7 @@ class Cloth:
 
     def settle(self, max_steps: int = 1500, window_steps: int = 60, displacement_tol: float = 5e-4,
                iterations: int = 100, substeps: int = 4, fast: bool = True, dt: float = 1 / 120,
-               cancel=None) -> SettleResult:
+               cancel=None, friction: float = 0.0) -> SettleResult:
         """XPBD drape until the cloth stands still: until no vertex moved more than
         displacement_tol (m) over the last window_steps steps of dt (s), or max_steps. For a
         garment too large for Newton (its stalls on buckled cloth at ~10k vertices cost seconds
@@ -286,7 +294,8 @@ class Cloth:
         unconverged (the relative force residual stays large; see SettleResult), and a vertex
         speed criterion never fires, because single substeps jitter where a window does not.
         Settled also needs no vertex deeper in the body than 10% of the collision thickness.
-        Starts from the current state (velocities kept); releases the GIL in the sweeps."""
+        Starts from the current state (velocities kept); releases the GIL in the sweeps. friction:
+        Coulomb μ of the cloth on the body (as in step)."""
         n = _validate.positive_int("max_steps", max_steps)
         w = _validate.positive_int("window_steps", window_steps)
         if not (np.isfinite(displacement_tol) and displacement_tol > 0):
@@ -297,7 +306,7 @@ class Cloth:
             x_before = np.array(self.state.x)
             k = min(w, n - steps)
             r = self.drape(max_steps=k, min_steps=k, refine=False, iterations=iterations, substeps=substeps,
-                           fast=fast, dt=dt, raise_on_divergence=False, cancel=cancel)
+                           fast=fast, dt=dt, raise_on_divergence=False, cancel=cancel, friction=friction)
             steps += r.steps
             if r.diverged:
                 message = r.message

@@ -563,6 +563,8 @@ TrajectoryCheckpoints forward_pass(XpbdSolver& S, const ClothState& start, const
   if (steps < 1 || k < 1) throw std::invalid_argument("trajectory adjoint: steps and checkpoint_every must be >= 1");
   // the replay records float64 projections: a float forward (sim/fast_sweep.hpp) would not match it
   if (p.fast) throw std::invalid_argument("trajectory adjoint: SimParams.fast (single-precision sweeps) is not differentiable");
+  if (p.friction != 0.0)
+    throw std::invalid_argument("trajectory adjoint: SimParams.friction is not differentiated; record with friction = 0");
   TrajectoryCheckpoints fw;
   fw.steps = steps;
   fw.every = k;

@@ -82,7 +82,8 @@ void bind_sim(py::module_& m) {
       .def_readwrite("damping", &SimParams::damping)
       .def_readwrite("contact_radius", &SimParams::contact_radius)
       .def_readwrite("max_speed", &SimParams::max_speed)
-      .def_readwrite("fast", &SimParams::fast);
+      .def_readwrite("fast", &SimParams::fast)
+      .def_readwrite("friction", &SimParams::friction);
 
   py::class_<DrapeParams>(m, "DrapeParams")
       .def(py::init<>())

@@ -31,6 +31,9 @@ class FastSweep {
   /// this step's contacts. Multipliers start at zero, as every step's do.
   void run(RowMatX3d& x, int sweeps, double dt, const std::vector<Contact>& contacts, const BodyCollider& body,
            double thickness, double contact_stiffness, double seam_compliance);
+  /// The last run's contact multipliers λ (one per contact, in its order): the contact moved
+  /// its vertex by w λ (m) along the normal.
+  const std::vector<float>& contact_lambda() const { return cl_; }
   std::uint64_t revision = 0;  // the solver revision (control + plan) it was built for
 
   /// Packed constraints of one kind: vertex indices and float fields, one entry per constraint in

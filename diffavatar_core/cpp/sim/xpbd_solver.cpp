@@ -9,6 +9,7 @@
 #include "sim/bending_kernel.hpp"
 #include "sim/cloth_energy.hpp"
 #include "sim/contact_kernel.hpp"
+#include "sim/friction_kernel.hpp"
 #include "sim/seam_kernel.hpp"
 #include "sim/stretch_kernel.hpp"
 
@@ -203,6 +204,10 @@ double StepTape::mb() const {
 double XpbdSolver::step(ClothState& s, const SimParams& p, StepTape* tape, const std::vector<Contact>* contacts) {
   const ClothModel& m = model_;
   const int nv = m.num_vertices;
+  if (tape && p.friction != 0.0)
+    throw std::invalid_argument("XPBD step: friction is not differentiated; record a trajectory with friction = 0");
+  if (!(p.friction >= 0.0) || !std::isfinite(p.friction))
+    throw std::invalid_argument("XPBD step: friction must be a finite coefficient >= 0");
   RowMatX3d x_prev = s.x;
   const double decay = std::exp(-p.damping * p.dt);
   double vpred = 0.0;
@@ -232,6 +237,17 @@ double XpbdSolver::step(ClothState& s, const SimParams& p, StepTape* tape, const
     fast_.run(s.x, p.iterations, p.dt, contacts_, collider_, m.thickness, m.contact_stiffness, m.seam_compliance);
   } else {
     for (int it = 0; it < p.iterations; ++it) sweep(s, p.dt, tape ? &tape->sweeps[it] : nullptr);
+  }
+  if (p.friction > 0.0) {
+    const int nc = static_cast<int>(contacts_.size());
+    const bool fl = p.fast && !tape;
+    for (int j = 0; j < nc; ++j) {
+      const int i = contacts_[j].vertex;
+      const double lam = fl ? static_cast<double>(fast_.contact_lambda()[j]) : s.lambda_contact[j];
+      Vec3 xi = s.x.row(i).transpose();
+      apply_friction(xi, x_prev.row(i).transpose(), collider_.normal(contacts_[j].tri), m.inv_mass[i] * lam, p.friction);
+      s.x.row(i) = xi.transpose();
+    }
   }
   double vmax = 0.0;
   for (int i = 0; i < nv; ++i) {

@@ -31,6 +31,7 @@ struct SimParams {
   double contact_radius = 0.01;        // m beyond the thickness within which contacts are detected
   double max_speed = 50.0;             // m/s; above (or non-finite) the step is declared diverged
   bool fast = false;  // single-precision SIMD sweeps (sim/fast_sweep.hpp): drapes only, never with a tape
+  double friction = 0.0;  // Coulomb μ of cloth on body (sim/friction_kernel.hpp): forward only, never with a tape
 };
 
 struct DrapeParams {
