@@ -188,10 +188,13 @@ def _assets_drape(g, co, material, body_vertices, body_faces, opts, cancel):
     """(V, 3) m: the co-optimization's drape re-solved on a Cloth of the recovered pattern and
     re-anchored at itself until it stays put (Cloth.self_anchor). The optimizer's equilibria
     hold anchor springs (the refinement's static-friction proxy, the scan guidance); this is
-    the equilibrium of the written assets alone, which reloaded do not move. Returns (drape or
-    None when no round re-solved, the last round's largest move m)."""
+    the equilibrium of the written assets alone, which reloaded do not move. With output_friction
+    μ > 0, an anchor whose pull is a static friction force (inside its contact's Coulomb cone) is
+    kept: the drape is a static equilibrium under friction μ, and a cloth that would slide for
+    ever without friction (a long sleeve down the arm) stops. Returns (drape or None when no
+    round re-solved, the largest distance m from a vertex to an anchor that is not such a force)."""
     cloth = _garment_cloth(g, co.rest, co.x, material, (body_vertices, body_faces), co.bend_stiffness)
-    move = cloth.self_anchor(opts.residual_tol, tol=SELF_ANCHOR_TOL, cancel=cancel)
+    move = cloth.self_anchor(opts.residual_tol, tol=SELF_ANCHOR_TOL, cancel=cancel, friction=opts.output_friction)
     return (np.array(cloth.x) if np.isfinite(move) else None), move
 
 
@@ -335,7 +338,8 @@ def _recover(scan, opts: RecoverOptions, ctl: "_Control", body_model, t0: float)
             x_out = x_assets
             if move > SELF_ANCHOR_TOL:
                 warnings.append(f"the recovered drape still moved {1e3 * move:.2f} mm in its last re-anchoring "
-                                f"(Cloth.self_anchor): reloaded, the assets may settle by about that much")
+                                f"(Cloth.self_anchor, friction {opts.output_friction}): reloaded, the assets may "
+                                f"settle by about that much")
 
     # result ------------------------------------------------------------------------------------
     ctl.report("metrics")

@@ -364,28 +364,71 @@ class Cloth:
         return its, res, pen
 
     def self_anchor(self, residual_tol: float, rounds: int = 10, tol: float = 1e-4, refine_iterations: int = 120,
-                    cancel=None) -> float:
+                    cancel=None, friction: float = 0.0) -> float:
         """Re-solves the equilibrium with the static-friction anchors (κ = 1/s²) moved to the
         current state, until the state stays put (no vertex moves more than tol, m; `rounds` at
         most): an equilibrium of its own anchors, which a fresh Cloth of the same model and
         control started there does not leave (a drape anchored elsewhere — an optimizer's warm
         start — moves by up to its distance from it). A round that misses residual_tol or ends
-        in the body (deeper than 10% of the thickness) is undone and ends the rounds. Returns
-        the last completed round's largest move (m; inf if none completed). Usually geometric
-        (the sample skirt: 2.6 → 0.12 → 0.001 mm), but a cloth that slides takes more rounds
-        (5.4, 1.9, 1.1, 1.0, 1.9, 0.25 mm, then < 0.01 mm: 7 rounds)."""
-        move = float("inf")
+        in the body (deeper than 10% of the thickness) is undone and ends the rounds. Usually
+        geometric (the sample skirt: 2.6 → 0.12 → 0.001 mm), but a frictionless cloth that slides
+        takes more rounds (5.4, 1.9, 1.1, 1.0, 1.9, 0.25 mm, then < 0.01 mm: 7 rounds) or never
+        stops (a long sleeve down an arm).
+
+        friction μ > 0 (Coulomb, dimensionless): a vertex keeps its anchor while the anchor's pull
+        is a static friction force the body can exert — tangential part ≤ μ × the normal force
+        (contact penalty plus the pull's normal part; contact_cone_violation) — and only the
+        others are re-anchored; the rounds end when none is left. The result is then a static
+        equilibrium under Coulomb friction μ: every anchor force is zero (within tol of its
+        vertex) or inside its contact's friction cone. Returns the largest distance (m) from a
+        vertex to an anchor that is not (0 when all are; inf if no round completed)."""
+        mu = float(friction)
+        if not (np.isfinite(mu) and mu >= 0):
+            raise ValueError(f"friction: expected a Coulomb coefficient >= 0 (dimensionless), got {friction}")
+        offset = float("inf")
+        anchor = np.array(self.x)
         for _ in range(max(int(rounds), 0)):
             x0 = np.array(self.x)
-            _, res = self.refine(keep_anchor=False, residual_tol=residual_tol, refine_iterations=refine_iterations,
+            _, res = self.refine(anchor=anchor, residual_tol=residual_tol, refine_iterations=refine_iterations,
                                  cancel=cancel)
             if not (res <= residual_tol and not self.solver.max_penetration(self.x) > 0.1 * self.model.thickness):
                 self.reset(x0)
                 break
-            move = float(np.linalg.norm(np.asarray(self.x) - x0, axis=1).max())
-            if move <= tol:
+            x = np.asarray(self.x)
+            d = np.linalg.norm(anchor - x, axis=1)
+            outside = d > tol
+            if mu > 0 and outside.any():
+                outside &= self.contact_cone_violation(anchor, mu)
+            offset = float(d[outside].max()) if outside.any() else 0.0
+            if not outside.any():
                 break
-        return move
+            anchor[outside] = x[outside]
+        return offset
+
+    def contact_cone_violation(self, anchor, friction: float, anchor_stiffness: float = 1.0) -> np.ndarray:
+        """(V,) bool at the current state: True where the anchor spring's force
+        f = κ m (a − x) (anchor (V, 3) m, κ = anchor_stiffness 1/s²) is not a Coulomb friction
+        force of the body — the body's total force on the vertex, the contact penalty
+        k_c max(0, −C) n (contact_kernel.hpp; plane of the closest body triangle) plus f, must push
+        outward (N = its normal part ≥ 0) with a tangential part ≤ friction·N. A vertex off the
+        body (no penalty) fails whenever f ≠ 0."""
+        x = np.asarray(self.x)
+        a = _validate.points("anchor", anchor)
+        m = np.asarray(self.model.mass)
+        f = anchor_stiffness * m[:, None] * (a - x)
+        bv = np.ascontiguousarray(self.control.body_vertices, np.float64)
+        if not len(bv):
+            return np.linalg.norm(f, axis=1) > 0
+        bf = np.ascontiguousarray(self.body_faces, np.int32)
+        tri, _, _ = _core.closest_points_on_mesh(bv, bf, np.ascontiguousarray(x))
+        T = bv[bf[np.asarray(tri)]]
+        n = np.cross(T[:, 1] - T[:, 0], T[:, 2] - T[:, 0])
+        n /= np.maximum(np.linalg.norm(n, axis=1), 1e-300)[:, None]
+        C = ((x - T[:, 0]) * n).sum(1) - self.model.thickness
+        fn = (f * n).sum(1)
+        N = self.model.contact_stiffness * np.maximum(-C, 0.0) + fn
+        ft = np.linalg.norm(f - fn[:, None] * n, axis=1)
+        return ~((N >= 0) & (ft <= friction * N))
 
     def reequilibrate(self, x_warm, residual_tol: float = 1e-7, refine_iterations: int = 80,
                       max_steps: int = 600, iterations: int = 100, cancel=None, fast: bool = False,

@@ -1,7 +1,8 @@
 """Coulomb friction of the cloth on the body (sim/friction_kernel.hpp): a flat sheet on an inclined
 plane obeys the sliding-block law — it stays put when μ ≥ tan θ and otherwise slides with the
 acceleration g (sin θ − μ cos θ) — in the double-precision and the fast sweeps; μ = 0 is the
-frictionless slide g sin θ; and nothing differentiated accepts friction."""
+frictionless slide g sin θ; Cloth.self_anchor with friction ends on a static Coulomb equilibrium
+exactly when μ exceeds the slope; and nothing differentiated accepts friction."""
 import numpy as np
 import pytest
 
@@ -15,12 +16,12 @@ DT = 1 / 240
 H = 0.004      # collision thickness (m), Cloth's default
 
 
-def inclined_sheet():
-    """A 10 cm sheet lying on a plane through the origin tilted by THETA about the x axis (its
+def inclined_sheet(theta=THETA):
+    """A 10 cm sheet lying on a plane through the origin tilted by theta about the x axis (its
     downhill direction in the y–z plane), at the collision thickness above it. Returns the cloth
     and the unit downhill direction."""
-    down = np.array([0.0, -np.sin(THETA), np.cos(THETA)])        # in the plane, pointing downhill
-    normal = np.array([0.0, np.cos(THETA), np.sin(THETA)])       # outward, up the slope's side
+    down = np.array([0.0, -np.sin(theta), np.cos(theta)])        # in the plane, pointing downhill
+    normal = np.array([0.0, np.cos(theta), np.sin(theta)])       # outward, up the slope's side
     across = np.array([1.0, 0.0, 0.0])
     L = 2.0
     corners = np.array([-L * across - L * down, L * across - L * down, L * across + L * down, -L * across + L * down])
@@ -70,3 +71,37 @@ def test_friction_is_refused_where_it_would_be_differentiated():
         cloth.step(1, friction=-0.1)
     with pytest.raises(ValueError, match="friction"):
         cloth.step(1, friction=float("nan"))
+
+
+@pytest.mark.parametrize("mu", [0.0, 0.03, 0.04, 0.1])
+def test_self_anchor_stops_on_a_slope_exactly_when_friction_can_hold(mu):
+    """The anchored Newton equilibrium on a 2° slope slides until the anchors' pull balances
+    the downhill weight (g sin θ / κ = 34 cm at κ = 1/s²): a frictionless cloth re-anchored at
+    itself slides again every round; with friction the pull is a static friction force as long
+    as μ ≥ tan 2° = 0.035, so the rounds stop and every vertex's anchor force lies in its cone."""
+    theta = np.radians(2.0)
+    cloth, down = inclined_sheet(theta)
+    x0 = np.array(cloth.x)
+    offset = cloth.self_anchor(1e-8, rounds=3, tol=1e-4, friction=mu)
+    slid = float(((np.asarray(cloth.x) - x0) @ down).mean())
+    per_round = G * np.sin(theta)
+    if mu > np.tan(theta):
+        assert offset == 0.0
+        assert abs(slid / per_round - 1) < 0.02, slid    # one round: the anchored equilibrium
+    else:
+        assert offset > 0.5 * per_round                    # still sliding after three rounds
+        assert slid > 2.5 * per_round
+
+
+def test_contact_cone_violation_is_the_coulomb_condition():
+    """A sheet resting on a level plane, pulled sideways by anchors offset by d: inside the
+    cone iff κ m d ≤ μ m g (the weight is the normal force); lifted off the body, any pull fails."""
+    cloth, _ = inclined_sheet(0.0)
+    assert cloth.drape(max_steps=200, residual_tol=1e-9, anchor_stiffness=0.0).converged
+    x = np.array(cloth.x)
+    side = np.array([1.0, 0.0, 0.0])
+    for d, mu, inside in ((0.5, 0.1, True), (1.5, 0.1, False), (0.02, 0.0, False), (0.0, 0.0, True)):
+        v = cloth.contact_cone_violation(x + d * side, mu)
+        assert np.all(v != inside), (d, mu)
+    cloth.reset(x + [0.0, 0.05, 0.0])                      # 5 cm above the plane
+    assert cloth.contact_cone_violation(x + [0.0, 0.05, 0.0] + 1e-3 * side, 1.0).all()
