@@ -222,6 +222,9 @@ def test_options_from_node_dict_and_config():
         RecoverOptions.from_config(output_drape_sweeps=0)
     with pytest.raises(ValueError, match="length_smoothing"):
         RecoverOptions.from_config(length_smoothing=-0.001)
+    for mu in (-0.1, float("nan"), "0.3"):
+        with pytest.raises(ValueError, match="output_friction"):
+            RecoverOptions.from_config(output_friction=mu)
     with pytest.raises(ValueError, match="optimizer"):
         RecoverOptions.from_config(optimizer="sgd")
     with pytest.raises(ValueError, match="bending_after"):
