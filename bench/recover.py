@@ -12,6 +12,9 @@ handles start on the template's outline, measurement_fit_iterations 0: a referen
 fixed_masses (the template's masses throughout); stretch (the stretch compliances optimized too,
 `stretch: garment`; truths with other compliances by --compliance-scales).
 
+A case whose recovery fails (RecoveryError: e.g. the initial drape did not converge) is reported with
+its message under the variant and counted in "failed"; the means are over the others.
+
 With --output-edge the result is carried to a finer output mesh; --truth-edge settles the ground
 truth on a mesh that fine too (a 1 cm cloth does not fold as a 4 cm one: the truth of a 10k output).
 
@@ -29,7 +32,7 @@ import numpy as np
 
 import diffavatar_core as dc
 from diffavatar_core.pattern.cage import cage_handles
-from diffavatar_core.pipeline import RecoverOptions, recover
+from diffavatar_core.pipeline import RecoverOptions, RecoveryError, recover
 from diffavatar_core.pipeline.options import Weights
 from diffavatar_core.pipeline.synthetic import make_case, truth_material
 
@@ -156,6 +159,7 @@ def main():
            "friction": RecoverOptions.from_config().output_friction if args.friction is None else args.friction,
            "optimizer": RecoverOptions.from_config().optimizer, "cases": []}
     per_variant = {v: [] for v in variants}
+    failed = {v: 0 for v in variants}   # cases whose recovery raised RecoveryError (not in the means)
     for k in range(args.first_case, args.cases):
         tpl = templates[k % len(templates)]
         # bending spread over two decades across the cases
@@ -172,14 +176,21 @@ def main():
         entry = {"template": tpl, "seed": 100 + k, "truth": {"measurements_m": case.measurements,
                                                              "bend_stiffness_Nm": bend, "compliance_scale": scale}}
         for v in variants:
-            entry[v] = run_case(case, v, args.iterations, args.output_edge, args.friction)
+            try:
+                entry[v] = run_case(case, v, args.iterations, args.output_edge, args.friction)
+            except RecoveryError as exc:   # the pipeline failed on this case: a result to count, not the run's end
+                entry[v] = {"failed": str(exc)}
+                failed[v] += 1
+                continue
             per_variant[v].append(entry[v])
         out["cases"].append(entry)
         print(json.dumps(entry), flush=True)
     keys = ("chamfer_ratio", "chamfer_ratio_optimized", "chamfer_final_cm", "pattern_area_error_pct", "pattern_edge_error_cm",
             "bending_log10_error", "stretch_log10_error", "body_vertex_error_cm", "mesh_quality_min", "wall_s", "cpu_s", "iterations",
             "garment_vertices")
-    out["mean"] = {v: {k: float(np.nanmean([r[k] for r in rs])) for k in keys} for v, rs in per_variant.items()}
+    out["mean"] = {v: {k: float(np.nanmean([r[k] for r in rs])) if rs else float("nan") for k in keys}
+                   for v, rs in per_variant.items()}
+    out["failed"] = failed
     out["targets"] = {"chamfer_ratio": "<= 0.35", "pattern_area_error_pct": "<= 3", "bending_log10_error": "<= 0.15",
                       "body_vertex_error_cm": "<= 1.5", "wall_s": "<= 300 for a ~10k-vertex garment"}
     print(json.dumps(out, indent=2))
