@@ -57,6 +57,7 @@ class RecoverOptions:
     bend_stiffness: float = 5e-6
     samples: int = 2000
     drape_steps: int = 200
+    drape_rounds: int = 3
     drape_iterations: int = 40
     residual_tol: float = 1e-7
     max_seam_mismatch_pct: float = 5.0
@@ -86,7 +87,7 @@ class RecoverOptions:
     def __post_init__(self):
         def bad(name, why):
             raise ValueError(f"recover options: {name} {why}, got {getattr(self, name)!r}")
-        for name in ("iterations", "samples", "drape_steps", "drape_iterations", "patience", "bending_after",
+        for name in ("iterations", "samples", "drape_steps", "drape_rounds", "drape_iterations", "patience", "bending_after",
                      "body_after", "output_drape_steps", "output_drape_sweeps", "fresh_every", "reevaluations",
                      "measurement_fit_iterations"):
             v = getattr(self, name)
@@ -110,7 +111,7 @@ class RecoverOptions:
         for name in ("optimize_body", "masses_follow_rest"):
             if not isinstance(getattr(self, name), bool):
                 bad(name, "must be true or false")
-        for name in ("output_drape_steps", "output_drape_sweeps"):
+        for name in ("output_drape_steps", "output_drape_sweeps", "drape_rounds"):
             if getattr(self, name) < 1:
                 bad(name, "must be at least 1")
         if not 0.005 <= self.edge_length <= 0.2:

@@ -184,15 +184,32 @@ def _fine_output(g, cage, co, fine: Garment, material, body_vertices, body_faces
     return fine, rest, np.array(cloth.x), s
 
 
+def _initial_drape(cloth, opts, cancel):
+    """The template's drape on the fitted body: drape_steps XPBD steps (1/120 s), then Newton to
+    residual_tol. A drape Newton does not finish — a cloth still far from rest after drape_steps
+    (a dress's long skirt on some bodies) — goes on with drape_steps more XPBD steps from where
+    Newton stopped, drape_rounds rounds at most. Returns (the last DrapeResult, XPBD steps taken)."""
+    steps = 0
+    for _ in range(opts.drape_rounds):
+        r = cloth.drape(max_steps=max(opts.drape_steps, 1), iterations=opts.drape_iterations,
+                        residual_tol=opts.residual_tol, refine_iterations=120, raise_on_divergence=False,
+                        cancel=cancel)
+        steps += r.steps
+        if r.converged or r.diverged:
+            break
+    return r, steps
+
+
 def _assets_drape(g, co, material, body_vertices, body_faces, opts, cancel):
     """(V, 3) m: the co-optimization's drape re-solved on a Cloth of the recovered pattern and
     re-anchored at itself until it stays put (Cloth.self_anchor). The optimizer's equilibria
     hold anchor springs (the refinement's static-friction proxy, the scan guidance); this is
     the equilibrium of the written assets alone, which reloaded do not move. With output_friction
     μ > 0, an anchor whose pull is a static friction force (inside its contact's Coulomb cone) is
-    kept: the drape is a static equilibrium under friction μ, and a cloth that would slide for
-    ever without friction (a long sleeve down the arm) stops. Returns (drape or None when no
-    round re-solved, the largest distance m from a vertex to an anchor that is not such a force)."""
+    kept: the drape is a static equilibrium under friction μ. Rounds that alternate between two
+    contact sets (the long sleeve's, Cloth.self_anchor) do not stop either way. Returns (drape or
+    None when no round re-solved, the largest distance m from a vertex to an anchor that is not
+    such a force)."""
     cloth = _garment_cloth(g, co.rest, co.x, material, (body_vertices, body_faces), co.bend_stiffness)
     move = cloth.self_anchor(opts.residual_tol, tol=SELF_ANCHOR_TOL, cancel=cancel, friction=opts.output_friction)
     return (np.array(cloth.x) if np.isfinite(move) else None), move
@@ -276,12 +293,11 @@ def _recover(scan, opts: RecoverOptions, ctl: "_Control", body_model, t0: float)
     cloth = _garment_cloth(g, g.rest, g.x0, material, (body_vertices, model.faces),
                            masses_follow_rest=opts.masses_follow_rest)
     cloth.sew(cancel=ctl.token)
-    r = cloth.drape(max_steps=max(opts.drape_steps, 1), iterations=opts.drape_iterations,
-                    residual_tol=opts.residual_tol, refine_iterations=120, raise_on_divergence=False,
-                    cancel=ctl.token)
+    r, drape_steps = _initial_drape(cloth, opts, ctl.token)
     if not r.converged:
         raise RecoveryError(f"the initial drape of template '{template_name}' on the fitted body did not "
-                            f"converge ({r.message}; residual {r.residual:.2e})")
+                            f"converge in {drape_steps} XPBD steps (at most {opts.drape_rounds} rounds of drape_steps "
+                            f"{opts.drape_steps}, each then Newton: {r.message}; residual {r.residual:.2e})")
     x_initial = np.array(cloth.x)
     cm = 100.0
     nsamp = int(opts.config.get("metrics", {}).get("chamfer_samples", 20000)) if opts.config else 20000

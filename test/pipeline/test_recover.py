@@ -218,6 +218,8 @@ def test_options_from_node_dict_and_config():
         RecoverOptions.from_config(output_settle_tol=0.0)
     with pytest.raises(ValueError, match="output_drape_steps"):
         RecoverOptions.from_config(output_drape_steps=0)
+    with pytest.raises(ValueError, match="drape_rounds"):
+        RecoverOptions.from_config(drape_rounds=0)
     with pytest.raises(ValueError, match="output_drape_sweeps"):
         RecoverOptions.from_config(output_drape_sweeps=0)
     with pytest.raises(ValueError, match="length_smoothing"):
