@@ -65,6 +65,17 @@ def positive_int(name: str, n) -> int:
     return k
 
 
+def friction(mu) -> float:
+    """A Coulomb coefficient (dimensionless): a finite number >= 0, else ValueError naming it."""
+    try:
+        v = float(mu)
+    except (TypeError, ValueError):
+        raise ValueError(f"friction: expected a Coulomb coefficient >= 0 (dimensionless), got {mu!r}") from None
+    if isinstance(mu, (bool, str)) or not (np.isfinite(v) and v >= 0):
+        raise ValueError(f"friction: expected a Coulomb coefficient >= 0 (dimensionless), got {mu!r}")
+    return v
+
+
 def is_cancelled(cancel) -> bool:
     """Whether `cancel` — None, a CancelToken, a threading.Event, or anything with a
     `cancelled` flag — asks to stop."""

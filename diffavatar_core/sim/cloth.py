@@ -60,9 +60,7 @@ class SettleResult:
 def _sim_params(dt, iterations, gravity, damping, contact_radius, max_speed, fast=False, friction=0.0):
     p = _core.SimParams()
     p.fast = bool(fast)
-    if not (np.isfinite(friction) and friction >= 0):
-        raise ValueError(f"friction: expected a Coulomb coefficient >= 0 (dimensionless), got {friction}")
-    p.friction = float(friction)
+    p.friction = _validate.friction(friction)
     if not (np.isfinite(dt) and dt > 0):
         raise ValueError(f"dt: expected a time step > 0 s, got {dt}")
     p.dt = float(dt)
@@ -386,9 +384,7 @@ class Cloth:
         equilibrium under Coulomb friction μ: every anchor force is zero (within tol of its
         vertex) or inside its contact's friction cone. Returns the largest distance (m) from a
         vertex to an anchor that is not (0 when all are; inf if no round completed)."""
-        mu = float(friction)
-        if not (np.isfinite(mu) and mu >= 0):
-            raise ValueError(f"friction: expected a Coulomb coefficient >= 0 (dimensionless), got {friction}")
+        mu = _validate.friction(friction)
         offset = float("inf")
         anchor = np.array(self.x)
         for _ in range(max(int(rounds), 0)):
@@ -416,6 +412,7 @@ class Cloth:
         k_c max(0, −C) n (contact_kernel.hpp; plane of the closest body triangle) plus f, must push
         outward (N = its normal part ≥ 0) with a tangential part ≤ friction·N. A vertex off the
         body (no penalty) fails whenever f ≠ 0."""
+        mu = _validate.friction(friction)
         x = np.asarray(self.x)
         a = _validate.points("anchor", anchor)
         m = np.asarray(self.model.mass)
@@ -432,7 +429,7 @@ class Cloth:
         fn = (f * n).sum(1)
         N = self.model.contact_stiffness * np.maximum(-C, 0.0) + fn
         ft = np.linalg.norm(f - fn[:, None] * n, axis=1)
-        return ~((N >= 0) & (ft <= friction * N))
+        return ~((N >= 0) & (ft <= mu * N))
 
     def reequilibrate(self, x_warm, residual_tol: float = 1e-7, refine_iterations: int = 80,
                       max_steps: int = 600, iterations: int = 100, cancel=None, fast: bool = False,

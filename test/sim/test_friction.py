@@ -69,8 +69,11 @@ def test_friction_is_refused_where_it_would_be_differentiated():
         _core.trajectory_forward(cloth.solver, cloth.state, p, 3, 1, None, None)
     with pytest.raises(ValueError, match="friction"):
         cloth.step(1, friction=-0.1)
-    with pytest.raises(ValueError, match="friction"):
-        cloth.step(1, friction=float("nan"))
+    for bad in (float("nan"), float("inf"), "0.3", None, True):
+        with pytest.raises(ValueError, match="friction"):
+            cloth.step(1, friction=bad)
+        with pytest.raises(ValueError, match="friction"):
+            cloth.self_anchor(1e-8, rounds=1, friction=bad)
 
 
 @pytest.mark.parametrize("mu", [0.0, 0.03, 0.04, 0.1])
