@@ -651,6 +651,12 @@ def test_a_stop_signal_cancels_the_running_and_the_queued_job_then_exits(ros_dom
             assert time.monotonic() < deadline, (f"the first job did not start within 120 s (progress: "
                                                  f"{[(p.job_id, p.stage) for p in cli.progress]})")
             time.sleep(0.05)
+        # the goal's "queued" report travels on its own path and may arrive after the first job's
+        # start: wait for it, then it must be the only one (the goal has not started)
+        deadline = time.monotonic() + 30
+        while not cli.progress_of("waiting"):
+            assert time.monotonic() < deadline, "the goal's queued report did not arrive within 30 s"
+            time.sleep(0.02)
         assert [p.stage for p in cli.progress_of("waiting")] == ["queued"]
         out, stopped_in = _stop_node(proc, signal.SIGTERM)
         answer = _wait(goal_result, 5)
