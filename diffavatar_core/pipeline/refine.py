@@ -46,19 +46,18 @@ def transfer_positions(coarse: Garment, x_coarse, fine: Garment) -> np.ndarray:
     return np.einsum("nk,nkd->nd", bary, x_coarse[coarse.faces[tri]])
 
 
-def push_outside(x, body_vertices, body_faces, thickness: float) -> np.ndarray:
-    """x (V, 3) m with every vertex closer to the body than `thickness` (m) — or inside it, signed
-    by the closest face's normal — moved to the closest body point + thickness along that normal.
-    The coarse drape's chords cut through the body's curvature by millimetres, and Newton from a
-    deeply penetrating start does not converge."""
+def push_outside(x, body_vertices, body_faces, thickness: float, smooth: bool = False) -> np.ndarray:
+    """x (V, 3) m with every vertex closer to the body than `thickness` (m) — or inside it — along
+    its contact plane's normal at its closest body point (_core.contact_planes; smooth: the
+    interpolated normal, else the closest face's, sim/contact_kernel.hpp) moved to that point +
+    thickness along that normal. The coarse drape's chords cut through the body's curvature by
+    millimetres, and Newton from a deeply penetrating start does not converge."""
     x = np.array(x, np.float64)
     bv = np.ascontiguousarray(body_vertices, np.float64)
     bf = np.ascontiguousarray(body_faces, np.int32)
-    tri, _, cp = _core.closest_points_on_mesh(bv, bf, x)
+    _, _, cp = _core.closest_points_on_mesh(bv, bf, x)
+    _, _, n = _core.contact_planes(bv, bf, x, bool(smooth))
     cp = np.asarray(cp)
-    T = bv[bf[np.asarray(tri)]]
-    n = np.cross(T[:, 1] - T[:, 0], T[:, 2] - T[:, 0])
-    n /= np.maximum(np.linalg.norm(n, axis=1), 1e-300)[:, None]
     near = ((x - cp) * n).sum(1) < thickness
     x[near] = cp[near] + thickness * n[near]
     return x
@@ -72,6 +71,7 @@ def settle_carried(cloth, x0, body_vertices, body_faces, max_steps: int, sweeps:
     Cloth.settle, no vertex moving more than displacement_tol (m) in 0.5 s; friction: Coulomb μ
     of the cloth on the body (sim/friction_kernel.hpp; 0 = frictionless). Returns its
     SettleResult. Shared by the fine output (recovery) and the fine ground truth (synthetic)."""
-    cloth.reset(push_outside(x0, body_vertices, body_faces, float(cloth.model.thickness)))
+    cloth.reset(push_outside(x0, body_vertices, body_faces, float(cloth.model.thickness),
+                             bool(cloth.model.smooth_contact)))
     return cloth.settle(max_steps=max_steps, displacement_tol=displacement_tol, iterations=sweeps,
                         substeps=SUBSTEPS, fast=True, cancel=cancel, friction=friction)

@@ -57,6 +57,17 @@ class SettleResult:
                 "message": self.message}
 
 
+# m: how deep in the body Cloth.reseat_contacts looks for vertices to push out. A Newton solve
+# carries a vertex without contact in by centimetres (a skirt's waist vertex: 28 mm); cloth deeper
+# than this was inside before (test_xpbd_physics: a sheet hung at a ball's centre), and a contact
+# would drag it across the body.
+RESEAT_MAX_DEPTH = 0.05
+
+# The contact plane of a cloth vertex on the body (sim/contact_kernel.hpp, docs/simulation.md): its
+# closest triangle's own plane, or the tangent plane with the interpolated vertex normal.
+CONTACT_NORMALS = ("face", "smooth")
+
+
 def _sim_params(dt, iterations, gravity, damping, contact_radius, max_speed, fast=False, friction=0.0):
     p = _core.SimParams()
     p.fast = bool(fast)
@@ -93,7 +104,10 @@ class Cloth:
     def __init__(self, rest, faces, x0, seams=None, pinned=None, groups=None,
                  materials: ClothMaterial | list[ClothMaterial] | None = None, body=None,
                  thickness: float = 0.004, contact_stiffness: float = 2.0e3,
-                 seam_compliance: float = 1.0e-5, grain=None, masses_follow_rest: bool = False):
+                 seam_compliance: float = 1.0e-5, grain=None, masses_follow_rest: bool = False,
+                 contact_normals: str = "face"):
+        if contact_normals not in CONTACT_NORMALS:
+            raise ValueError(f"contact_normals: expected one of {', '.join(CONTACT_NORMALS)}, got {contact_normals!r}")
         rest = _validate.points("rest", rest, dims=2)
         F = _validate.faces("faces", faces, len(rest))
         x0 = _validate.points("x0", x0)
@@ -129,7 +143,7 @@ class Cloth:
         model = _core.build_cloth_model(len(rest), F, rest, groups, seams, pinned, bF,
                                         materials[0].density, float(thickness),
                                         float(contact_stiffness), float(seam_compliance), grain,
-                                        bool(masses_follow_rest))
+                                        bool(masses_follow_rest), contact_normals == "smooth")
         control = _core.ClothControl(rest, np.array([m.compliance for m in materials]),
                                      np.array([m.bend_stiffness for m in materials]), bV)
         self.solver = _core.XpbdSolver(model, control)
@@ -328,12 +342,14 @@ class Cloth:
         return SettleResult(settled, steps, moved, w * dt, pen, gap, residual, time.perf_counter() - t0, message)
 
     def refine(self, keep_anchor: bool = True, keep_contacts: bool = False, residual_tol: float = 1e-5, refine_iterations: int = 200,
-               anchor_stiffness: float = 1.0, progress=None, cancel=None, anchor=None) -> tuple[int, float]:
+               anchor_stiffness: float = 1.0, progress=None, cancel=None, anchor=None,
+               contact_radius: float | None = None) -> tuple[int, float]:
         """Newton refinement of the current state to equilibrium with the last drape's simulation
         parameters; keep_anchor reuses the anchors of the last refinement and keep_contacts its
         contact set (what the equilibrium adjoint differentiates); anchor (V,3) m: new anchor
         positions instead (springs of stiffness anchor_stiffness·m, 1/s², pulling toward a target
-        shape). Returns (iterations, residual)."""
+        shape); contact_radius (m): the contact search reach beyond the collision thickness for
+        this refinement's detection (None: the last drape's). Returns (iterations, residual)."""
         if anchor is not None:
             self.solver.set_anchor(_validate.points("anchor", anchor))
             keep_anchor = True
@@ -342,6 +358,10 @@ class Cloth:
         d.refine_iterations = int(refine_iterations)
         d.anchor_stiffness = float(anchor_stiffness)
         p = getattr(self, "params", None) or _sim_params(1 / 120, 100, (0, -9.81, 0), 4.0, 0.01, 50.0)
+        if contact_radius is not None:
+            if not (np.isfinite(contact_radius) and contact_radius >= 0):
+                raise ValueError(f"contact_radius: expected a distance >= 0 m, got {contact_radius}")
+            p = _sim_params(p.dt, p.iterations, p.gravity, p.damping, contact_radius, p.max_speed, p.fast, p.friction)
         return self.solver.refine(self.state, p, d, keep_anchor, keep_contacts, progress, cancel)
 
     def reseat_contacts(self, residual_tol: float, refine_iterations: int = 200, anchor_stiffness: float = 1.0,
@@ -349,15 +369,22 @@ class Cloth:
         """Newton holds the contact set of its starting state fixed, so a vertex that was not in
         contact can end inside the body: while one is (max penetration > 0), re-detect the
         contacts at the current state and refine again, anchors kept (an active-set iteration,
-        `rounds` at most). Returns (Newton iterations, last residual, max penetration m)."""
+        `rounds` at most). The search reaches the deepest vertex up to RESEAT_MAX_DEPTH: one that
+        Newton carried deeper than the contact search reach (collision thickness + contact_radius;
+        a vertex outside that reach at the start of the solve had no contact) is found and pushed
+        out too. Returns (Newton iterations, last residual, max penetration m)."""
         its, res = 0, float("nan")
         pen = float(self.solver.max_penetration(self.x))
+        base = getattr(self, "params", None)
+        reach = float(base.contact_radius) if base is not None else 0.01
         for _ in range(rounds):
             if not pen > 0.0:
                 break
             k, res = self.refine(keep_anchor=True, keep_contacts=False, residual_tol=residual_tol,
                                  refine_iterations=refine_iterations, anchor_stiffness=anchor_stiffness,
-                                 progress=progress, cancel=cancel)
+                                 progress=progress, cancel=cancel,
+                                 contact_radius=max(reach, min(pen, RESEAT_MAX_DEPTH) - float(self.model.thickness)
+                                                    + 1e-3))
             its, pen = its + k, float(self.solver.max_penetration(self.x))
         return its, res, pen
 
@@ -369,21 +396,21 @@ class Cloth:
         control started there does not leave (a drape anchored elsewhere — an optimizer's warm
         start — moves by up to its distance from it). A round that misses residual_tol or ends
         in the body (deeper than 10% of the thickness) is undone and ends the rounds. Usually
-        geometric (the sample skirt: 2.6 → 0.12 → 0.001 mm), but a frictionless cloth that slides
-        takes more rounds (5.4, 1.9, 1.1, 1.0, 1.9, 0.25 mm, then < 0.01 mm: 7 rounds) or never
-        stops: the long-sleeve template's drape on the default body alternates between two states
-        6–7 mm apart at the hanging front hem (25 rounds measured), because Newton holds each
-        contact on the plane of its vertex's closest body triangle at the round's start and ~100
-        vertices (shoulders, hips) have a different closest triangle in each state; anchor springs
-        10 or 100× stiffer and friction do not end it.
+        geometric (the skirt template on the default body: 0.93 → 0.036 → 0 mm). Each round holds
+        its contacts' planes from the round's start. With contact_normals="face" the long-sleeve
+        template's drape on the default body alternates between two states 6–7 mm apart (~100
+        vertices have another closest triangle in each; anchors 10 or 100× stiffer and friction do
+        not end it); the smooth plane turns continuously as a vertex's closest body point moves
+        and its rounds converge (0.9, 9.1, 0.32, 0.20, 0.13, 0.09 mm; docs/simulation.md).
 
         friction μ > 0 (Coulomb, dimensionless): a vertex keeps its anchor while the anchor's pull
         is a static friction force the body can exert — tangential part ≤ μ × the normal force
         (contact penalty plus the pull's normal part; contact_cone_violation) — and only the
         others are re-anchored; the rounds end when none is left. The result is then a static
         equilibrium under Coulomb friction μ: every anchor force is zero (within tol of its
-        vertex) or inside its contact's friction cone. Returns the largest distance (m) from a
-        vertex to an anchor that is not (0 when all are; inf if no round completed)."""
+        vertex) or inside its contact's friction cone. Returns the largest distance (m) of the last
+        round from a vertex to an anchor that is not inside its cone (≤ tol: converged; 0 when every
+        anchor is; inf if no round completed)."""
         mu = _validate.friction(friction)
         offset = float("inf")
         anchor = np.array(self.x)
@@ -396,20 +423,21 @@ class Cloth:
                 break
             x = np.asarray(self.x)
             d = np.linalg.norm(anchor - x, axis=1)
-            outside = d > tol
-            if mu > 0 and outside.any():
-                outside &= self.contact_cone_violation(anchor, mu)
-            offset = float(d[outside].max()) if outside.any() else 0.0
-            if not outside.any():
+            # every anchor friction cannot hold (all of them without friction) moves to the state,
+            # however little its vertex moved: anchors left behind within tol would add up their
+            # offsets round after round and hold the rounds just above tol
+            loose = self.contact_cone_violation(anchor, mu) if mu > 0 else np.ones(len(x), bool)
+            offset = float(d[loose].max()) if loose.any() else 0.0
+            anchor[loose] = x[loose]
+            if offset <= tol:
                 break
-            anchor[outside] = x[outside]
         return offset
 
     def contact_cone_violation(self, anchor, friction: float, anchor_stiffness: float = 1.0) -> np.ndarray:
         """(V,) bool at the current state: True where the anchor spring's force
         f = κ m (a − x) (anchor (V, 3) m, κ = anchor_stiffness 1/s²) is not a Coulomb friction
         force of the body — the body's total force on the vertex, the contact penalty
-        k_c max(0, −C) n (contact_kernel.hpp; plane of the closest body triangle) plus f, must push
+        k_c max(0, −C) n (the contact plane at the closest body point, contact_kernel.hpp) plus f, must push
         outward (N = its normal part ≥ 0) with a tangential part ≤ friction·N. A vertex off the
         body (no penalty) fails whenever f ≠ 0."""
         mu = _validate.friction(friction)
@@ -421,11 +449,8 @@ class Cloth:
         if not len(bv):
             return np.linalg.norm(f, axis=1) > 0
         bf = np.ascontiguousarray(self.body_faces, np.int32)
-        tri, _, _ = _core.closest_points_on_mesh(bv, bf, np.ascontiguousarray(x))
-        T = bv[bf[np.asarray(tri)]]
-        n = np.cross(T[:, 1] - T[:, 0], T[:, 2] - T[:, 0])
-        n /= np.maximum(np.linalg.norm(n, axis=1), 1e-300)[:, None]
-        C = ((x - T[:, 0]) * n).sum(1) - self.model.thickness
+        _, q, n = _core.contact_planes(bv, bf, np.ascontiguousarray(x, np.float64), bool(self.model.smooth_contact))
+        C = ((x - q) * n).sum(1) - self.model.thickness
         fn = (f * n).sum(1)
         N = self.model.contact_stiffness * np.maximum(-C, 0.0) + fn
         ft = np.linalg.norm(f - fn[:, None] * n, axis=1)

@@ -31,9 +31,11 @@ SUBSTEPS = 4
 SWEEPS = ("single", "double")
 
 
-def build(garment: str = "tshirt", material: ClothMaterial | None = None, edge: float = 0.025):
-    """(Cloth, garment dict, body (V, F)) for `garment` (see GARMENTS) at target edge `edge` (m).
-    The garment dict has rest, faces, x0, seams, groups, boundaries (name → vertex chain)."""
+def build(garment: str = "tshirt", material: ClothMaterial | None = None, edge: float = 0.025,
+          contact_normals: str = "face"):
+    """(Cloth, garment dict, body (V, F)) for `garment` (see GARMENTS) at target edge `edge` (m),
+    with the contact plane `contact_normals` (Cloth). The garment dict has rest, faces, x0, seams,
+    groups, boundaries (name → vertex chain)."""
     if garment not in GARMENTS:
         raise ValueError(f"garment: unknown {garment!r}; available: {', '.join(GARMENTS)}")
     mat = material or ClothMaterial()
@@ -50,7 +52,8 @@ def build(garment: str = "tshirt", material: ClothMaterial | None = None, edge: 
         g = dict(rest=t.rest, faces=t.faces, x0=t.x0, seams=t.seams, groups=t.panel[t.faces[:, 0]],
                  boundaries=dict(t.boundaries), grain=t.face_grain())
     cloth = Cloth(g["rest"], g["faces"], g["x0"], seams=g["seams"], groups=g["groups"],
-                  materials=[mat] * (int(g["groups"].max()) + 1), body=body, grain=g.get("grain"))
+                  materials=[mat] * (int(g["groups"].max()) + 1), body=body, grain=g.get("grain"),
+                  contact_normals=contact_normals)
     return cloth, g, body
 
 
@@ -63,14 +66,14 @@ def run(out: pathlib.Path, garment: str = "tshirt", max_steps: int = 1500, itera
 
 def execute(out: pathlib.Path, garment: str = "tshirt", max_steps: int = 1500, iterations: int = 100,
             refine: bool = True, edge: float = 0.025, progress=None, cancel=None, substeps: int = SUBSTEPS,
-            sweeps: str = "single"):
+            sweeps: str = "single", contact_normals: str = "face"):
     """As run, also returning the draped Cloth, the garment dict and the body: (info, cloth, g, body)."""
     substeps = _validate.positive_int("substeps", substeps)   # before any work
     if sweeps not in SWEEPS:
         raise ValueError(f"sweeps: expected one of {', '.join(SWEEPS)}, got {sweeps!r}")
     t0 = time.perf_counter()
     out.mkdir(parents=True, exist_ok=True)
-    cloth, g, (bv, bf) = build(garment, edge=edge)
+    cloth, g, (bv, bf) = build(garment, edge=edge, contact_normals=contact_normals)
     sew_steps = cloth.sew(cancel=cancel)
     r = cloth.drape(max_steps=max_steps, iterations=iterations, refine=refine, progress=progress,
                     cancel=cancel, raise_on_divergence=False, substeps=substeps, fast=sweeps == "single")

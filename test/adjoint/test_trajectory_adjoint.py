@@ -110,9 +110,12 @@ def test_rest_material_and_initial_state_gradients(free_sheet):
     _check(cloth, W, start, g, "v0", np.array(start.v), picks, 1e-6)
 
 
+@pytest.mark.parametrize("contact", ["face", "smooth"])
 @pytest.mark.parametrize("plan", ["colours", "lanes"])
-def test_body_vertex_gradients_through_contact(plan):
-    cloth = sheet_against_sphere(n=5, materials=MAT, contact_stiffness=200.0)
+def test_body_vertex_gradients_through_contact(plan, contact):
+    """Through the contact planes (sim/contact_kernel.hpp); the smooth one also through the vertex
+    normals and the barycentrics of each step's detection (region_barycentrics)."""
+    cloth = sheet_against_sphere(n=5, materials=MAT, contact_stiffness=200.0, contact_normals=contact)
     _plan(cloth, plan)
     cloth.solver.step(cloth.state, _params(), 30)  # moving and touching
     start = cloth.state.copy()
@@ -124,6 +127,12 @@ def test_body_vertex_gradients_through_contact(plan):
     picks = [(int(i), k) for i in active[:4] for k in range(3)]
     _check(cloth, W, start, g, "body_vertices", np.array(cloth.control.body_vertices), picks, 1e-6,
            smooth_filter=True)
+    # the start positions of vertices touching the sphere (through the detections, too)
+    touching = np.unique([c for c in np.flatnonzero(np.abs(np.asarray(g["x0"])).sum(1) > 0)
+                          if np.linalg.norm(start.x[c] - [0.1, 0.1, -0.06]) < 0.08 + 0.02])
+    assert len(touching) >= 2
+    _check(cloth, W, start, g, "x0", np.array(start.x), [(int(i), k) for i in touching[:4] for k in range(3)],
+           1e-6, smooth_filter=True)
 
 
 def test_checkpointing_gives_the_same_gradient(free_sheet):

@@ -2,7 +2,9 @@
 // x*(θ), defined by ∇ₓE(x*, θ) = 0 (sim/cloth_energy.hpp), the implicit function theorem gives
 //   dφ/dθ = −μᵀ ∂(∇ₓE)/∂θ   with   ∇ₓ²E(x*) μ = ∂φ/∂x,
 // one sparse symmetric solve (LDLᵀ) instead of a backward pass over every step. The active
-// contacts (their body triangles) are held fixed at x*. Valid when x* is a converged
+// contacts (their body triangles and closest-point barycentrics: sim/contact_kernel.hpp) are held
+// as the refinement held them — detected at its start state, as the pipeline's warm-started
+// re-drapes detect them at the previous equilibrium. Valid when x* is a converged
 // equilibrium (drape residual ≈ 0) and no contact enters or leaves under the perturbation;
 // not valid for an unconverged drape or when the loss depends on the trajectory.
 #pragma once

@@ -7,6 +7,7 @@
 
 #include "adjoint/projection_vjp.hpp"
 #include "autodiff/jet.hpp"
+#include "geometry/vertex_normals.hpp"
 #include "sim/bending_kernel.hpp"
 #include "sim/contact_kernel.hpp"
 #include "sim/grain_frame.hpp"
@@ -92,14 +93,6 @@ struct HingeGeom {
   }
 };
 
-/// Contact (contact_kernel.hpp): C = n̂·(p − b0) − h, ∇_p C = n̂, n = (b1−b0)×(b2−b0).
-template <class T>
-T contact_cg(const V3<T>& p, const V3<T>& b0, const V3<T>& b1, const V3<T>& b2, double h, V3<T>* gp) {
-  V3<T> n = cross(b1 - b0, b2 - b0);
-  *gp = n * (T(1.0) / norm(n));
-  return dot(*gp, p - b0) - h;
-}
-
 /// Derivatives of the rest-shape quantities w.r.t. the rest coordinates u; constant during one
 /// adjoint call (the control is fixed), so computed once instead of once per projection.
 struct RestDerivs {
@@ -163,10 +156,14 @@ struct Adjoints {
   VecXd lam_hinge;    // by position
   RowMatX3d lam_seam; // by seam index
   VecXd lam_contact;  // by contact index
-  // Per contact of the current step, its body triangle's gradient summed over the step's sweeps
-  // (b0, b1, b2 × 3); scattered to the body vertices in contact order at the step's end, so the
-  // contacts (which share body vertices) are reversed in parallel.
-  Eigen::Matrix<double, Eigen::Dynamic, 9, Eigen::RowMajor> contact_body;
+  // Per contact of the current step, its plane's gradient summed over the step's sweeps (b0, b1,
+  // b2, then their vertex normals N0, N1, N2, × 3; then the barycentrics w0, w1, w2); at the
+  // step's end w's goes through the step's detection (region_barycentrics of the predicted
+  // position) and the rest to the body vertices and normals, in contact order, so the contacts
+  // (which share body vertices) are reversed in parallel. The normals' gradient reaches the body
+  // vertices once, at the end (the body is fixed during the trajectory: the VJP is linear).
+  Eigen::Matrix<double, Eigen::Dynamic, 21, Eigen::RowMajor> contact_body;
+  RowMatX3d body_normals_bar;
   ControlGradient g;  // control gradient (body vertices directly; the rest in finish_control)
   // Per-position sums over every projection of the trajectory. The rest shape and the material
   // enter a projection only through these per-constraint quantities, and the control is fixed
@@ -381,39 +378,34 @@ void reverse_seam(const XpbdSolver& S, const double* rec, int sidx, double dt2, 
 // `rec`: the vertex, λ.
 void reverse_contact(const XpbdSolver& S, const double* rec, const Contact& ct, int ci, double dt2, Adjoints& a) {
   const ClothModel& m = S.model();
-  const ClothControl& c = S.control();
-  const RowMatX3d& B = c.body_vertices;
-  int bi[3];
-  for (int q = 0; q < 3; ++q) bi[q] = m.body_faces(ct.tri, q);
-  V3<double> nd;
-  double Cd = contact_cg(val3(rec), val3(B, bi[0]), val3(B, bi[1]), val3(B, bi[2]), m.thickness, &nd);
+  Vec3 b[3], N[3];
+  for (int k = 0; k < 3; ++k) {
+    b[k] = S.control().body_vertices.row(m.body_faces(ct.tri, k)).transpose();
+    N[k] = S.cache().body_normals.row(m.body_faces(ct.tri, k)).transpose();
+  }
+  const ContactFrame f = contact_frame(m.smooth_contact, b, N, ct.w);
+  const Eigen::Vector3d pv = Eigen::Map<const Eigen::Vector3d>(rec);
   Eigen::Matrix<double, 1, 1> C, at, lm, lb;
-  C[0] = Cd;
-  Eigen::Matrix<double, 1, 3> G(nd.x, nd.y, nd.z);
+  C[0] = contact_gap(pv, f, m.thickness);
+  Eigen::Matrix<double, 1, 3> G = f.n.transpose();
   Eigen::Vector3d w = Eigen::Vector3d::Constant(m.inv_mass[ct.vertex]);
   Eigen::Vector3d xb = a.x.row(ct.vertex).transpose();
   at[0] = 1.0 / (m.contact_stiffness * dt2);
   lm[0] = rec[3];
   lb[0] = a.lam_contact[ci];
   auto r = block_adjoint<1, 3>(C, G, w, at, lm, true, xb, lb);
-  // ψ = C̄ C + Ḡ·n̂ = n̂·v − C̄ h with v = C̄ (p − b0) + Ḡ: ∂ψ/∂p = C̄ n̂ (∇_p C = n̂ is constant in
-  // p); through n = e1 × e2 (e1 = b1 − b0, e2 = b2 − b0): y = ∂(n̂·v)/∂n = (v − n̂ (n̂·v))/|n|,
-  // ∂/∂b1 = e2 × y, ∂/∂b2 = y × e1, ∂/∂b0 = −(∂/∂b1 + ∂/∂b2) − C̄ n̂.
-  const Eigen::Vector3d pv = Eigen::Map<const Eigen::Vector3d>(rec);
-  const Eigen::Vector3d b0 = B.row(bi[0]).transpose(), e1 = B.row(bi[1]).transpose() - b0,
-                        e2 = B.row(bi[2]).transpose() - b0;
-  const Eigen::Vector3d n = e1.cross(e2);
-  const double nl = n.norm();
-  const Eigen::Vector3d nh = n / nl;
-  const double cb = r.Cbar[0];
-  const Eigen::Vector3d v = cb * (pv - b0) + r.Gbar.row(0).transpose();
-  const Eigen::Vector3d y = (v - nh * nh.dot(v)) / nl;
-  const Eigen::Vector3d g1 = e2.cross(y), g2 = y.cross(e1);
-  a.x.row(ct.vertex) += cb * nh.transpose();
+  // ψ = C̄ C + Ḡ·n̂ through the contact's plane (contact_kernel.hpp, contact_vjp).
+  Vec3 gp = Vec3::Zero(), gb[3] = {Vec3::Zero(), Vec3::Zero(), Vec3::Zero()},
+       gn[3] = {Vec3::Zero(), Vec3::Zero(), Vec3::Zero()};
+  double gw[3] = {0.0, 0.0, 0.0};
+  contact_vjp(m.smooth_contact, pv, f, b, N, ct.w, r.Cbar[0], r.Gbar.row(0).transpose(), &gp, gb, gn, gw);
+  a.x.row(ct.vertex) += gp.transpose();
   auto body = a.contact_body.row(ci);
-  body.segment<3>(0) -= (g1 + g2 + cb * nh).transpose();
-  body.segment<3>(3) += g1.transpose();
-  body.segment<3>(6) += g2.transpose();
+  for (int k = 0; k < 3; ++k) {
+    body.segment<3>(3 * k) += gb[k].transpose();
+    body.segment<3>(9 + 3 * k) += gn[k].transpose();
+    body[18 + k] += gw[k];
+  }
   a.lam_contact[ci] = r.lbar[0];
 }
 
@@ -491,7 +483,7 @@ void reverse_step(const XpbdSolver& S, const StepTape& tape, const SimParams& p,
   a.lam_hinge.setZero(a.hinge.size());
   a.lam_seam.setZero(m.seams.rows(), 3);
   a.lam_contact.setZero(nc);
-  a.contact_body.setZero(nc, 9);
+  a.contact_body.setZero(nc, 21);
   if (static_cast<int>(tape.sweeps.size()) < p.iterations)
     throw std::logic_error("trajectory adjoint: tape does not match the sweep structure");
   for (int it = p.iterations - 1; it >= 0; --it) {
@@ -500,9 +492,30 @@ void reverse_step(const XpbdSolver& S, const StepTape& tape, const SimParams& p,
       throw std::logic_error("trajectory adjoint: tape size does not match the model");
     reverse_sweep(S, sw, tape.contacts, dt, a);
   }
-  for (Eigen::Index ci = 0; ci < nc; ++ci)
-    for (int q = 0; q < 3; ++q)
-      a.g.body_vertices.row(m.body_faces(tape.contacts[ci].tri, q)) += a.contact_body.row(ci).segment<3>(3 * q);
+  for (Eigen::Index ci = 0; ci < nc; ++ci) {
+    const Contact& ct = tape.contacts[ci];
+    const auto row = a.contact_body.row(ci);
+    for (int q = 0; q < 3; ++q) {
+      const int b = m.body_faces(ct.tri, q);
+      a.g.body_vertices.row(b) += row.segment<3>(3 * q);
+      a.body_normals_bar.row(b) += row.segment<3>(9 + 3 * q);
+    }
+    // w = region_barycentrics(at, b): `at` is the vertex's predicted position, where a.x now is.
+    if (!m.smooth_contact || ct.region >= 4) continue;  // the face plane has no w; at a corner w is constant
+    using D = Dual<12>;
+    V3<D> at{D::var(ct.at.x(), 0), D::var(ct.at.y(), 1), D::var(ct.at.z(), 2)}, bd[3];
+    for (int q = 0; q < 3; ++q) {
+      const int b = m.body_faces(ct.tri, q);
+      bd[q] = {D::var(S.control().body_vertices(b, 0), 3 + 3 * q), D::var(S.control().body_vertices(b, 1), 4 + 3 * q),
+               D::var(S.control().body_vertices(b, 2), 5 + 3 * q)};
+    }
+    D w[3];
+    region_barycentrics(at, bd, ct.region, w);
+    Eigen::Matrix<double, 12, 1> gw = Eigen::Matrix<double, 12, 1>::Zero();
+    for (int k = 0; k < 3; ++k) gw += row[18 + k] * w[k].g;
+    a.x.row(ct.vertex) += gw.head<3>().transpose();
+    for (int q = 0; q < 3; ++q) a.g.body_vertices.row(m.body_faces(ct.tri, q)) += gw.segment<3>(3 + 3 * q).transpose();
+  }
   // Prediction: x̃ = x + dt (decay v + dt g) for free vertices; pinned stay.
   RowMatX3d& vb = a.vnext;
   vb.setZero(nv, 3);
@@ -606,6 +619,7 @@ TrajectoryGradient backward_pass(XpbdSolver& S, const TrajectoryCheckpoints& fw,
   a.g.stretch_compliance = RowMatX3d::Zero(m.num_groups, 3);
   a.g.bend_stiffness = VecXd::Zero(m.num_groups);
   a.g.body_vertices = RowMatX3d::Zero(S.control().body_vertices.rows(), 3);
+  a.body_normals_bar = RowMatX3d::Zero(S.control().body_vertices.rows(), 3);
   build_constants(S, p.dt * p.dt, a);
   a.tri_acc.setZero(a.tri.size(), 8);
   a.hinge_acc.setZero(a.hinge.size(), 2);
@@ -637,6 +651,8 @@ TrajectoryGradient backward_pass(XpbdSolver& S, const TrajectoryCheckpoints& fw,
       rc.report({"trajectory backward", done0 + steps - t, total, 0.0});
     }
   }
+  if (!a.body_normals_bar.isZero(0.0))
+    a.g.body_vertices += vertex_normals_vjp(S.control().body_vertices, m.body_faces, a.body_normals_bar);
   finish_control(S, rd, a, a.g);
   out.control = a.g;
   out.x0 = a.x;

@@ -6,8 +6,10 @@
 // records sequentially, in the sweep plan's blocks (parallel as in the forward sweep). Memory is
 // bounded by checkpointing: the forward pass keeps the state every `checkpoint_every` steps; the
 // backward pass recomputes one segment at a time and holds one step's tape. Every replayed step
-// uses the contacts its first run detected (kept with the checkpoints and segment starts; their
-// selection is not differentiated).
+// uses the contacts its first run detected (kept with the checkpoints and segment starts; which
+// triangle and Voronoi region a vertex touches is not differentiated, the closest point's
+// barycentrics within it are: they are a smooth function of the step's predicted position and the
+// body, contact_kernel.hpp region_barycentrics).
 //
 // The two halves can be run apart (trajectory_forward, then trajectory_backward): a loss that is
 // not linear in the final state (a Chamfer distance) needs x_T before its gradient ∂φ/∂x_T

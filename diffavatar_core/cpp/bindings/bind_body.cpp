@@ -7,6 +7,8 @@
 #include "body/linear_blend_skinning.hpp"
 #include "body/normal_equations.hpp"
 #include "geometry/triangle_mesh_bvh.hpp"
+#include "geometry/vertex_normals.hpp"
+#include "sim/body_collider.hpp"
 
 namespace py = pybind11;
 
@@ -89,6 +91,27 @@ void bind_body(py::module_& m) {
         py::arg("V").noconvert(), py::arg("F").noconvert(), py::arg("P").noconvert(),
         "Closest point on the triangle mesh (V #V×3, F #F×3) of each query point P (#P×3): "
         "(triangle index #P, barycentric coordinates #P×3, points #P×3), same units as V.");
+
+  m.def("vertex_normals", [](const RowMatX3d& V, const RowMatX3i& F) { return vertex_normals(V, F); },
+        py::arg("V"), py::arg("F"),
+        "Unit area-weighted vertex normals (#V×3) of the mesh (V #V×3, F #F×3); 0 for a vertex in no face.");
+  m.def("vertex_normals_vjp",
+        [](const RowMatX3d& V, const RowMatX3i& F, const RowMatX3d& gN) { return vertex_normals_vjp(V, F, gN); },
+        py::arg("V"), py::arg("F"), py::arg("gN"),
+        "Σ_i gN_i·∂N_i/∂V (#V×3): the vertex-normal gradient gN (#V×3) carried to the vertices.");
+  m.def("contact_planes",
+        [](const RowMatX3d& V, const RowMatX3i& F, const RowMatX3d& P, bool smooth) {
+          ContactPlanes c;
+          {
+            py::gil_scoped_release nogil;
+            c = contact_planes(V, F, P, smooth);
+          }
+          return py::make_tuple(c.tri, c.q, c.n);
+        },
+        py::arg("V"), py::arg("F"), py::arg("P"), py::arg("smooth"),
+        "The cloth–body contact plane (sim/contact_kernel.hpp) of each point P (#P×3, m) on the body "
+        "(V m, F) — smooth: the closest point q and the interpolated vertex normal n; else the closest "
+        "triangle's plane (q its first vertex): (triangle #P, q #P×3, n #P×3).");
 }
 
 }  // namespace diffavatar

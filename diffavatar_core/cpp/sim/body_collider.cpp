@@ -2,6 +2,8 @@
 
 #include <algorithm>
 
+#include "geometry/vertex_normals.hpp"
+
 namespace diffavatar {
 
 BodyCollider::BodyCollider(const RefX3d& V, const RefX3i& F) {
@@ -16,15 +18,34 @@ std::vector<Contact> BodyCollider::detect(const RowMatX3d& x, const VecXd& inv_m
   std::vector<Contact> out;
   if (!bvh_) return out;
   const int n = static_cast<int>(x.rows());
-  std::vector<int> tri(n, -1);
+  std::vector<SurfaceHit> hits(n);
 #pragma omp parallel for schedule(static) if (n >= 256)
   for (int i = 0; i < n; ++i) {
     if (inv_mass[i] == 0.0) continue;
-    SurfaceHit hit = bvh_->closest(x.row(i).transpose(), radius);
-    if (hit.tri >= 0) tri[i] = hit.tri;
+    hits[i] = bvh_->closest(x.row(i).transpose(), radius);
   }
   for (int i = 0; i < n; ++i)
-    if (tri[i] >= 0) out.push_back({i, tri[i]});
+    if (hits[i].tri >= 0)
+      out.push_back({i, hits[i].tri, {hits[i].bary[0], hits[i].bary[1], hits[i].bary[2]}, hits[i].region,
+                     x.row(i).transpose()});
+  return out;
+}
+
+ContactPlanes contact_planes(const RowMatX3d& V, const RowMatX3i& F, const RowMatX3d& P, bool smooth) {
+  const long n = P.rows();
+  ContactPlanes out{VecXi::Constant(n, -1), RowMatX3d::Zero(n, 3), RowMatX3d::Zero(n, 3)};
+  if (F.rows() == 0) return out;
+  const TriangleMeshBvh bvh(V, F);
+  const RowMatX3d N = vertex_normals(V, F);
+#pragma omp parallel for schedule(dynamic, 256)
+  for (long i = 0; i < n; ++i) {
+    const SurfaceHit h = bvh.closest(P.row(i).transpose());
+    const Contact c{static_cast<int>(i), h.tri, {h.bary[0], h.bary[1], h.bary[2]}, h.region, P.row(i).transpose()};
+    const ContactFrame f = contact_frame(smooth, c, V, N, F);
+    out.tri[i] = h.tri;
+    out.q.row(i) = f.q.transpose();
+    out.n.row(i) = f.n.transpose();
+  }
   return out;
 }
 

@@ -7,14 +7,50 @@
 
 #include "common/types.hpp"
 #include "geometry/triangle_mesh_bvh.hpp"
+#include "sim/contact_kernel.hpp"
 
 namespace diffavatar {
 
-/// A cloth vertex in contact with the plane of body triangle `tri` (contact_kernel.hpp).
+/// A cloth vertex in contact with the body at the point of triangle `tri` with barycentrics w:
+/// the closest point of its position `at` (m) at detection, in the triangle's Voronoi region
+/// `region` (closest_point_triangle.hpp: 0 face, 1–3 edges, 4–6 corners; contact_kernel.hpp).
 struct Contact {
   int vertex;
   int tri;
+  double w[3];
+  int region;
+  Vec3 at;
 };
+
+/// The contact's barycentrics on the body V (m), F: its detection point's closest point in its
+/// region (contact_kernel.hpp region_barycentrics) — what they were at detection, and how they
+/// follow the body when it moves under a held contact.
+inline void update_barycentrics(Contact& c, const RowMatX3d& V, const RowMatX3i& F) {
+  V3<double> b[3], at{c.at.x(), c.at.y(), c.at.z()};
+  for (int k = 0; k < 3; ++k) b[k] = {V(F(c.tri, k), 0), V(F(c.tri, k), 1), V(F(c.tri, k), 2)};
+  region_barycentrics(at, b, c.region, c.w);
+}
+
+/// The contact's plane (smooth or face, contact_kernel.hpp) on body vertices V (m) with unit vertex
+/// normals N and faces F.
+inline ContactFrame contact_frame(bool smooth, const Contact& c, const RowMatX3d& V, const RowMatX3d& N,
+                                 const RowMatX3i& F) {
+  Vec3 b[3], n[3];
+  for (int k = 0; k < 3; ++k) {
+    b[k] = V.row(F(c.tri, k)).transpose();
+    n[k] = N.row(F(c.tri, k)).transpose();
+  }
+  return contact_frame(smooth, b, n, c.w);
+}
+
+/// The contact plane (smooth or face, contact_kernel.hpp) at each point's closest point on the
+/// body (V m, F): triangle (−1 for no body), plane point q and unit normal n (#P×3). What a contact
+/// detected at P would hold (cloth.py's friction-cone check, refine.py's push_outside).
+struct ContactPlanes {
+  VecXi tri;
+  RowMatX3d q, n;
+};
+ContactPlanes contact_planes(const RowMatX3d& V, const RowMatX3i& F, const RowMatX3d& P, bool smooth);
 
 class BodyCollider {
  public:
@@ -23,15 +59,13 @@ class BodyCollider {
   bool empty() const { return !bvh_; }
   void set_vertices(const RefX3d& V);
   /// Contacts of the free vertices of x closer than `radius` (m) to the body surface,
-  /// sorted by vertex (deterministic), at most one per vertex (its closest body triangle; the
+  /// sorted by vertex (deterministic), at most one per vertex (its closest point; the
   /// sweeps and the trajectory adjoint project and reverse contacts in parallel on that basis).
   std::vector<Contact> detect(const RowMatX3d& x, const VecXd& inv_mass, double radius) const;
   /// Signed distance of p to the body (m): positive outside, by the closest triangle's normal.
   double signed_distance(const Vec3& p) const;
   /// Deepest penetration below the body surface over the vertices of x (m, ≥ 0).
   double max_penetration(const RowMatX3d& x) const;
-  Vec3 normal(int tri) const { return bvh_->face_normal(tri); }
-  Vec3 vertex(int tri, int k) const { return bvh_->vertices().row(bvh_->faces()(tri, k)); }
 
  private:
   std::shared_ptr<TriangleMeshBvh> bvh_;

@@ -3,6 +3,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "geometry/vertex_normals.hpp"
 #include "sim/bending_kernel.hpp"
 #include "sim/grain_frame.hpp"
 
@@ -37,6 +38,7 @@ RestCache prepare_control(const ClothModel& m, const ClothControl& c) {
     for (int k = 0; k < 4; ++k) { u[k][0] = c.rest(m.hinges(h, k), 0); u[k][1] = c.rest(m.hinges(h, k), 1); }
     rc.hinge_weight[h] = hinge_weight(u[0], u[1], u[2], u[3]);
   }
+  rc.body_normals = vertex_normals(c.body_vertices, m.body_faces);
   return rc;
 }
 

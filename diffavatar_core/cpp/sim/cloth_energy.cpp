@@ -3,6 +3,7 @@
 #include <Eigen/Eigenvalues>
 
 #include "autodiff/jet.hpp"
+#include "geometry/vertex_normals.hpp"
 #include "sim/bending_kernel.hpp"
 #include "sim/contact_kernel.hpp"
 #include "sim/grain_frame.hpp"
@@ -62,13 +63,9 @@ HingeTerms hinge_terms(const EnergyContext& c, const RowMatX3d& x, int h) {
   return r;
 }
 
-// Contact: C as a jet over [p (3) | b0 b1 b2 (9)].
-Jet<12> contact_C(const EnergyContext& c, const RowMatX3d& x, const Contact& ct) {
-  using J = Jet<12>;
-  V3<J> p = var3<J>(x, ct.vertex, 0);
-  V3<J> b[3];
-  for (int k = 0; k < 3; ++k) b[k] = var3<J>(c.control.body_vertices, c.model.body_faces(ct.tri, k), 3 + 3 * k);
-  return contact_gap(p, b[0], b[1], b[2], c.model.thickness);
+// Contact: its plane (contact_kernel.hpp) on the control's body; C = n̂·(p − q) − h is linear in p.
+ContactFrame frame_of(const EnergyContext& c, const Contact& ct) {
+  return contact_frame(c.model.smooth_contact, ct, c.control.body_vertices, c.cache.body_normals, c.model.body_faces);
 }
 
 template <int N>
@@ -113,12 +110,8 @@ double total_energy(const EnergyContext& c, const RowMatX3d& x) {
   for (int s = 0; s < m.seams.rows(); ++s)
     E += (x.row(m.seams(s, 0)) - x.row(m.seams(s, 1))).squaredNorm() * 0.5 / m.seam_compliance;
   for (const Contact& ct : c.contacts) {
-    Vec3 b0 = c.control.body_vertices.row(m.body_faces(ct.tri, 0));
-    Vec3 b1 = c.control.body_vertices.row(m.body_faces(ct.tri, 1));
-    Vec3 b2 = c.control.body_vertices.row(m.body_faces(ct.tri, 2));
-    V3<double> p{x(ct.vertex, 0), x(ct.vertex, 1), x(ct.vertex, 2)};
-    E += contact_energy(p, {b0.x(), b0.y(), b0.z()}, {b1.x(), b1.y(), b1.z()}, {b2.x(), b2.y(), b2.z()},
-                        m.thickness, m.contact_stiffness);
+    double C = contact_gap(x.row(ct.vertex).transpose(), frame_of(c, ct), m.thickness);
+    if (C < 0.0) E += 0.5 * m.contact_stiffness * C * C;
   }
   for (int i = 0; i < x.rows(); ++i) E -= m.mass[i] * c.gravity.dot(x.row(i).transpose());
   if (c.anchor && c.anchor_stiffness > 0)
@@ -167,8 +160,9 @@ RowMatX3d energy_gradient(const EnergyContext& c, const RowMatX3d& x) {
     G.row(m.seams(s, 1)) -= d;
   }
   for (const Contact& ct : c.contacts) {
-    Jet<12> C = contact_C(c, x, ct);
-    if (C.v < 0.0) G.row(ct.vertex) += m.contact_stiffness * C.v * C.g.segment<3>(0).transpose();
+    ContactFrame f = frame_of(c, ct);
+    double C = contact_gap(x.row(ct.vertex).transpose(), f, m.thickness);
+    if (C < 0.0) G.row(ct.vertex) += m.contact_stiffness * C * f.n.transpose();
   }
   return G;
 }
@@ -219,9 +213,9 @@ Eigen::SparseMatrix<double> energy_hessian(const EnergyContext& c, const RowMatX
   Hs /= m.seam_compliance;
   for (int s = 0; s < m.seams.rows(); ++s) scatter(Hs, &m.seams(s, 0), 2);
   for (const Contact& ct : c.contacts) {
-    Jet<12> C = contact_C(c, x, ct);
-    if (C.v >= 0.0) continue;  // C is linear in p: ∇ₚ²U = k_c ∇ₚC ∇ₚCᵀ
-    Eigen::Matrix3d H = m.contact_stiffness * C.g.segment<3>(0) * C.g.segment<3>(0).transpose();
+    ContactFrame f = frame_of(c, ct);
+    if (contact_gap(x.row(ct.vertex).transpose(), f, m.thickness) >= 0.0) continue;
+    Eigen::Matrix3d H = m.contact_stiffness * f.n * f.n.transpose();  // C is linear in p: ∇ₚ²U = k_c n̂ n̂ᵀ
     scatter(H, &ct.vertex, 1);
   }
   if (c.anchor && c.anchor_stiffness > 0)
@@ -296,15 +290,40 @@ ControlGradient mixed_product(const EnergyContext& c, const RowMatX3d& x, const 
       for (int k = 0; k < 3; ++k) g.rest.row(m.faces(t, k)) += w * dA.segment<2>(2 * k).transpose();
     }
   }
+  RowMatX3d gN;  // gradient w.r.t. the body's vertex normals, carried to its vertices at the end
   for (const Contact& ct : c.contacts) {
-    Jet<12> C = contact_C(c, x, ct);
-    if (C.v >= 0.0) continue;
-    // ∇ₚU = k C ∇ₚC → ∂/∂b = k (∇_b C ∇ₚCᵀ + C ∇²_{b,p} C) applied to μ_p.
-    Eigen::Vector3d mp = mu.row(ct.vertex).transpose();
-    Eigen::Matrix<double, 9, 1> gb =
-        m.contact_stiffness * (C.g.segment<9>(3) * C.g.segment<3>(0).dot(mp) + C.v * C.H.block<9, 3>(3, 0) * mp);
-    for (int k = 0; k < 3; ++k) g.body_vertices.row(m.body_faces(ct.tri, k)) += gb.segment<3>(3 * k).transpose();
+    ContactFrame f = frame_of(c, ct);
+    const Vec3 p = x.row(ct.vertex).transpose();
+    const double C = contact_gap(p, f, m.thickness);
+    if (C >= 0.0) continue;
+    // μₚ·∇ₚU = k C (n̂·μₚ): its body derivative is contact_vjp's ψ with c̄ = k n̂·μₚ, ḡ = k C μₚ.
+    const Vec3 mp = mu.row(ct.vertex).transpose();
+    Vec3 gp = Vec3::Zero(), gb[3] = {Vec3::Zero(), Vec3::Zero(), Vec3::Zero()},
+         gn[3] = {Vec3::Zero(), Vec3::Zero(), Vec3::Zero()};
+    Vec3 b[3], N[3];
+    for (int k = 0; k < 3; ++k) {
+      b[k] = c.control.body_vertices.row(m.body_faces(ct.tri, k)).transpose();
+      N[k] = c.cache.body_normals.row(m.body_faces(ct.tri, k)).transpose();
+    }
+    double gw[3] = {0.0, 0.0, 0.0};
+    contact_vjp(m.smooth_contact, p, f, b, N, ct.w, m.contact_stiffness * f.n.dot(mp), m.contact_stiffness * C * mp,
+                &gp, gb, gn, gw);
+    if (m.smooth_contact && ct.region < 4) {  // w follows the body: region_barycentrics of the held detection point
+      using D = Dual<9>;
+      V3<D> bd[3], at{D(ct.at.x()), D(ct.at.y()), D(ct.at.z())};
+      for (int k = 0; k < 3; ++k) bd[k] = {D::var(b[k].x(), 3 * k), D::var(b[k].y(), 3 * k + 1), D::var(b[k].z(), 3 * k + 2)};
+      D w[3];
+      region_barycentrics(at, bd, ct.region, w);
+      for (int k = 0; k < 3; ++k)
+        for (int j = 0; j < 3; ++j) gb[j] += gw[k] * w[k].g.segment<3>(3 * j);
+    }
+    if (gN.rows() == 0) gN = RowMatX3d::Zero(c.control.body_vertices.rows(), 3);
+    for (int k = 0; k < 3; ++k) {
+      g.body_vertices.row(m.body_faces(ct.tri, k)) += gb[k].transpose();
+      gN.row(m.body_faces(ct.tri, k)) += gn[k].transpose();
+    }
   }
+  if (m.smooth_contact && gN.rows()) g.body_vertices += vertex_normals_vjp(c.control.body_vertices, m.body_faces, gN);
   return g;
 }
 

@@ -248,8 +248,9 @@ void FastSweep::run_range(const Range& r, float inv_dt2, float seam_alpha) {
   }
 }
 
-void FastSweep::run(RowMatX3d& x, int sweeps, double dt, const std::vector<Contact>& contacts, const BodyCollider& body,
-                    double thickness, double contact_stiffness, double seam_compliance) {
+void FastSweep::run(RowMatX3d& x, int sweeps, double dt, const std::vector<Contact>& contacts,
+                    const std::vector<ContactFrame>& frames, double thickness, double contact_stiffness,
+                    double seam_compliance) {
   const int nv = static_cast<int>(x.rows());
   X_.resize(3 * static_cast<std::size_t>(nv));
   for (int i = 0; i < nv; ++i)
@@ -262,10 +263,10 @@ void FastSweep::run(RowMatX3d& x, int sweeps, double dt, const std::vector<Conta
   for (auto* a : {&cn_[0], &cn_[1], &cn_[2], &cd_}) a->resize(nc);
   cl_.assign(nc, 0.0f);
   for (int j = 0; j < nc; ++j) {
-    const Vec3 n = body.normal(contacts[j].tri);
+    const Vec3& n = frames[j].n;
     cv_[j] = contacts[j].vertex;
     for (int k = 0; k < 3; ++k) cn_[k][j] = static_cast<float>(n[k]);
-    cd_[j] = static_cast<float>(n.dot(body.vertex(contacts[j].tri, 0)) + thickness);
+    cd_[j] = static_cast<float>(n.dot(frames[j].q) + thickness);
   }
   const double dt2 = dt * dt;
   const float inv_dt2 = static_cast<float>(1.0 / dt2), seam_alpha = static_cast<float>(seam_compliance / dt2),

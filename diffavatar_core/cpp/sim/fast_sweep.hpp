@@ -28,9 +28,10 @@ class FastSweep {
   /// Packs the plan's blocks with the control's rest data (nothing position-dependent).
   void build(const ClothModel& m, const ClothControl& c, const RestCache& cache, const SweepPlan& plan);
   /// `sweeps` sweeps of a step of length dt (s) on x (#V×3, m; written back at the end) with
-  /// this step's contacts. Multipliers start at zero, as every step's do.
-  void run(RowMatX3d& x, int sweeps, double dt, const std::vector<Contact>& contacts, const BodyCollider& body,
-           double thickness, double contact_stiffness, double seam_compliance);
+  /// this step's contacts and their planes (contact_kernel.hpp). Multipliers start at zero, as
+  /// every step's do.
+  void run(RowMatX3d& x, int sweeps, double dt, const std::vector<Contact>& contacts,
+           const std::vector<ContactFrame>& frames, double thickness, double contact_stiffness, double seam_compliance);
   /// The last run's contact multipliers λ (one per contact, in its order): the contact moved
   /// its vertex by w λ (m) along the normal.
   const std::vector<float>& contact_lambda() const { return cl_; }

@@ -31,6 +31,7 @@ void XpbdSolver::set_control(ClothControl control) {
   if (model_.masses_follow_rest) set_lumped_masses(model_, control.rest);
   control_ = std::move(control);
   collider_.set_vertices(control_.body_vertices);
+  set_contacts(std::move(contacts_));  // their planes follow the body
   bump_revision();
 }
 
@@ -51,8 +52,18 @@ ClothState XpbdSolver::make_state(const RowMatX3d& x) const {
   return s;
 }
 
+void XpbdSolver::set_contacts(std::vector<Contact> contacts) {
+  contacts_ = std::move(contacts);
+  frames_.resize(contacts_.size());
+  for (std::size_t j = 0; j < contacts_.size(); ++j) {
+    update_barycentrics(contacts_[j], control_.body_vertices, model_.body_faces);
+    frames_[j] = contact_frame(model_.smooth_contact, contacts_[j], control_.body_vertices, cache_.body_normals,
+                               model_.body_faces);
+  }
+}
+
 void XpbdSolver::detect_contacts(const RowMatX3d& x, const SimParams& p) {
-  contacts_ = collider_.detect(x, model_.inv_mass, model_.thickness + p.contact_radius);
+  set_contacts(collider_.detect(x, model_.inv_mass, model_.thickness + p.contact_radius));
 }
 
 void XpbdSolver::set_sweep_plan(const SweepPlanParams& p) {
@@ -144,8 +155,7 @@ void XpbdSolver::sweep(ClothState& s, double dt, SweepTape* tape) {
       Eigen::Map<Vec3>(tape->contact.data() + kContactRecord * j) = pi;
       tape->contact[kContactRecord * j + 3] = s.lambda_contact[j];
     }
-    project_contact(pi, m.inv_mass[ct.vertex], collider_.normal(ct.tri), collider_.vertex(ct.tri, 0), m.thickness, ac,
-                    &s.lambda_contact[j]);
+    project_contact(pi, m.inv_mass[ct.vertex], frames_[j].n, frames_[j].q, m.thickness, ac, &s.lambda_contact[j]);
     x.row(ct.vertex) = pi.transpose();
   };
   if (!plan_.lane_parallel()) {
@@ -220,9 +230,9 @@ double XpbdSolver::step(ClothState& s, const SimParams& p, StepTape* tape, const
   // Contacts of the predicted positions; the search radius grows with the step's travel so a
   // fast vertex cannot tunnel through the collision layer between detections.
   if (contacts)
-    contacts_ = *contacts;
+    set_contacts(*contacts);
   else
-    contacts_ = collider_.detect(s.x, m.inv_mass, m.thickness + p.contact_radius + std::min(vpred * p.dt, 0.1));
+    set_contacts(collider_.detect(s.x, m.inv_mass, m.thickness + p.contact_radius + std::min(vpred * p.dt, 0.1)));
   s.lambda_tri.setZero();
   s.lambda_hinge.setZero();
   s.lambda_seam.setZero();
@@ -234,7 +244,7 @@ double XpbdSolver::step(ClothState& s, const SimParams& p, StepTape* tape, const
       fast_.build(model_, control_, cache_, plan_);
       fast_.revision = revision_;
     }
-    fast_.run(s.x, p.iterations, p.dt, contacts_, collider_, m.thickness, m.contact_stiffness, m.seam_compliance);
+    fast_.run(s.x, p.iterations, p.dt, contacts_, frames_, m.thickness, m.contact_stiffness, m.seam_compliance);
   } else {
     for (int it = 0; it < p.iterations; ++it) sweep(s, p.dt, tape ? &tape->sweeps[it] : nullptr);
   }
@@ -245,7 +255,7 @@ double XpbdSolver::step(ClothState& s, const SimParams& p, StepTape* tape, const
       const int i = contacts_[j].vertex;
       const double lam = fl ? static_cast<double>(fast_.contact_lambda()[j]) : s.lambda_contact[j];
       Vec3 xi = s.x.row(i).transpose();
-      apply_friction(xi, x_prev.row(i).transpose(), collider_.normal(contacts_[j].tri), m.inv_mass[i] * lam, p.friction);
+      apply_friction(xi, x_prev.row(i).transpose(), frames_[j].n, m.inv_mass[i] * lam, p.friction);
       s.x.row(i) = xi.transpose();
     }
   }

@@ -122,6 +122,8 @@ class XpbdSolver {
   SweepTapeLayout layout_;
   BodyCollider collider_;
   std::vector<Contact> contacts_;
+  std::vector<ContactFrame> frames_;  // of contacts_, on control_'s body
+  void set_contacts(std::vector<Contact> contacts);
   RowMatX3d anchor_;
   double anchor_k_ = 0.0;
   std::uint64_t revision_ = 0;
