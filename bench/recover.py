@@ -78,10 +78,12 @@ def stretch_log10_error(material, case) -> float:
     return float(np.mean([abs(math.log10(r / w)) for r, w in pairs]))
 
 
-def options_for(variant, iterations, output_edge=0.0, friction=None):
+def options_for(variant, iterations, output_edge=0.0, friction=None, contact_normals=None):
     o = RecoverOptions.from_config(units="cm", iterations=iterations, output_edge_length=output_edge)
     if friction is not None:
         o = o.with_(output_friction=friction)
+    if contact_normals is not None:
+        o = o.with_(contact_normals=contact_normals)
     if variant == "no_cage":
         return o.with_(parametrization="vertices")
     if variant == "no_seam":
@@ -105,10 +107,10 @@ def options_for(variant, iterations, output_edge=0.0, friction=None):
     return o
 
 
-def run_case(case, variant, iterations, output_edge=0.0, friction=None):
+def run_case(case, variant, iterations, output_edge=0.0, friction=None, contact_normals=None):
     t0, c0 = time.perf_counter(), time.process_time()
     r = recover((case.scan_vertices, case.scan_faces, case.scan_labels),
-                options_for(variant, iterations, output_edge, friction))
+                options_for(variant, iterations, output_edge, friction, contact_normals))
     m = r.metrics
     area_gt = case.garment.total_area()
     return {
@@ -152,6 +154,9 @@ def main():
     ap.add_argument("--friction", type=float, default=None,
                     help="Coulomb μ of the fine drapes (the fine truth's settle and the output's); "
                          "default: the config's output_friction")
+    ap.add_argument("--contact-normals", choices=("face", "smooth"), default=None,
+                    help="the contact plane of the truths and the recovery (sim/contact_kernel.hpp); "
+                         "default: the config's contact_normals")
     args = ap.parse_args()
     templates = args.templates.split(",")
     variants = args.variants.split(",")
@@ -160,6 +165,7 @@ def main():
            "machine": platform.machine(), "iterations": args.iterations, "output_edge_m": args.output_edge,
            "truth_edge_m": args.truth_edge or None,
            "friction": RecoverOptions.from_config().output_friction if args.friction is None else args.friction,
+           "contact_normals": args.contact_normals or RecoverOptions.from_config().contact_normals,
            "optimizer": RecoverOptions.from_config().optimizer, "cases": []}
     per_variant = {v: [] for v in variants}
     failed = {v: 0 for v in variants}   # cases whose recovery raised RecoveryError (not in the means)
@@ -170,7 +176,7 @@ def main():
         scale = scales[k % len(scales)]
         try:
             case = make_case(tpl, seed=100 + k, bend_stiffness=bend, truth_edge=args.truth_edge or None,
-                             compliance_scale=scale, friction=args.friction)
+                             compliance_scale=scale, friction=args.friction, contact_normals=args.contact_normals)
         except RuntimeError as exc:   # a truth that slid off or did not converge: no case, said so
             skipped = {"template": tpl, "seed": 100 + k, "skipped": str(exc), "compliance_scale": scale}
             out.setdefault("skipped", []).append(skipped)
@@ -180,7 +186,7 @@ def main():
                                                              "bend_stiffness_Nm": bend, "compliance_scale": scale}}
         for v in variants:
             try:
-                entry[v] = run_case(case, v, args.iterations, args.output_edge, args.friction)
+                entry[v] = run_case(case, v, args.iterations, args.output_edge, args.friction, args.contact_normals)
             except RecoveryError as exc:   # the pipeline failed on this case: a result to count, not the run's end
                 entry[v] = {"failed": str(exc)}
                 failed[v] += 1

@@ -9,6 +9,7 @@ from dataclasses import dataclass, field, fields, replace
 from ..config import load_config
 
 PARAMETRIZATIONS = ("cage", "vertices")
+CONTACT_NORMALS = ("face", "smooth")     # sim.cloth.CONTACT_NORMALS
 OPTIMIZERS = ("lbfgs", "adam")
 BENDING = ("garment", "panel", "fixed")
 STRETCH = ("fixed", "garment")
@@ -45,6 +46,7 @@ class RecoverOptions:
     output_drape_steps: int = 1500
     output_drape_sweeps: int = 400
     output_friction: float = 0.0
+    contact_normals: str = "face"
     parametrization: str = "cage"
     optimizer: str = "lbfgs"
     bending: str = "garment"
@@ -119,6 +121,8 @@ class RecoverOptions:
         o = self.output_edge_length
         if isinstance(o, bool) or not isinstance(o, (int, float)) or not (o == 0 or 0.005 <= o <= 0.2):
             bad("output_edge_length", "must be 0 (off) or lie in [0.005, 0.2] m")
+        if self.contact_normals not in CONTACT_NORMALS:
+            bad("contact_normals", f"must be one of {CONTACT_NORMALS}")
         if self.parametrization not in PARAMETRIZATIONS:
             bad("parametrization", f"must be one of {PARAMETRIZATIONS}")
         if self.optimizer not in OPTIMIZERS:

@@ -148,15 +148,17 @@ def _load_template_file(path, edge_length: float, body_vertices: np.ndarray) -> 
     return g
 
 
-def _garment_cloth(g: Garment, rest, x, material, body, bend_stiffness=None, masses_follow_rest=True) -> Cloth:
+def _garment_cloth(g: Garment, rest, x, material, body, bend_stiffness=None, masses_follow_rest=True,
+                   contact_normals: str = "face") -> Cloth:
     """A Cloth of garment g's mesh, seams, panels and grain at rest shape `rest` (V, 2) m and
     state x (V, 3) m, one material for every panel, on body (V, F); bend_stiffness (G,) N·m
     replaces the material's. Its masses follow the rest shape (masses_follow_rest): every
     pattern the optimizer tries weighs what its area does, and the equilibrium adjoint
-    differentiates that; with False they stay those of `rest`."""
+    differentiates that; with False they stay those of `rest`. contact_normals: the contact
+    plane (face | smooth, sim/contact_kernel.hpp)."""
     cloth = Cloth(rest, g.faces, x, seams=g.seams, groups=g.panel[g.faces[:, 0]],
                   materials=[material] * len(g.panels), body=body, grain=g.face_grain(),
-                  masses_follow_rest=masses_follow_rest)
+                  masses_follow_rest=masses_follow_rest, contact_normals=contact_normals)
     if bend_stiffness is not None:
         cloth.set_control(bend_stiffness=np.asarray(bend_stiffness, float))
     return cloth
@@ -176,7 +178,8 @@ def _fine_output(g, cage, co, fine: Garment, material, body_vertices, body_faces
     ValueError when the cloth does not settle."""
     rest = transfer_pattern(g, cage, co.rest[cage.handles], fine)   # MVC interpolate: ζ = x̄[handles]
     x0 = transfer_positions(g, co.x, fine)
-    cloth = _garment_cloth(fine, rest, x0, material, (body_vertices, body_faces), co.bend_stiffness)
+    cloth = _garment_cloth(fine, rest, x0, material, (body_vertices, body_faces), co.bend_stiffness,
+                           contact_normals=opts.contact_normals)
     s = settle_carried(cloth, x0, body_vertices, body_faces, opts.output_drape_steps, opts.output_drape_sweeps,
                        opts.output_settle_tol, cancel, opts.output_friction)
     if not s.settled:
@@ -207,10 +210,12 @@ def _assets_drape(g, co, material, body_vertices, body_faces, opts, cancel):
     the equilibrium of the written assets alone, which reloaded do not move. With output_friction
     μ > 0, an anchor whose pull is a static friction force (inside its contact's Coulomb cone) is
     kept: the drape is a static equilibrium under friction μ. Rounds that alternate between two
-    contact sets (the long sleeve's, Cloth.self_anchor) do not stop either way. Returns (drape or
+    contact sets (the long sleeve's with the face contact plane, Cloth.self_anchor) do not stop
+    either way; with contact_normals "smooth" they converge. Returns (drape or
     None when no round re-solved, the largest distance m from a vertex to an anchor that is not
     such a force)."""
-    cloth = _garment_cloth(g, co.rest, co.x, material, (body_vertices, body_faces), co.bend_stiffness)
+    cloth = _garment_cloth(g, co.rest, co.x, material, (body_vertices, body_faces), co.bend_stiffness,
+                           contact_normals=opts.contact_normals)
     move = cloth.self_anchor(opts.residual_tol, tol=SELF_ANCHOR_TOL, cancel=cancel, friction=opts.output_friction)
     return (np.array(cloth.x) if np.isfinite(move) else None), move
 
@@ -291,7 +296,7 @@ def _recover(scan, opts: RecoverOptions, ctl: "_Control", body_model, t0: float)
         g = remake(edge_length=opts.edge_length)
     material = ClothMaterial(bend_stiffness=opts.bend_stiffness)
     cloth = _garment_cloth(g, g.rest, g.x0, material, (body_vertices, model.faces),
-                           masses_follow_rest=opts.masses_follow_rest)
+                           masses_follow_rest=opts.masses_follow_rest, contact_normals=opts.contact_normals)
     cloth.sew(cancel=ctl.token)
     r, drape_steps = _initial_drape(cloth, opts, ctl.token)
     if not r.converged:

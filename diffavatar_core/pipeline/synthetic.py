@@ -114,19 +114,22 @@ def truth_material(bend_stiffness: float, compliance_scale: float = 1.0) -> Clot
                          shear_compliance=d.shear_compliance * compliance_scale)
 
 
-def _truth_cloth(g: Garment, x, body, bend_stiffness: float, compliance_scale: float) -> Cloth:
+def _truth_cloth(g: Garment, x, body, bend_stiffness: float, compliance_scale: float,
+                 contact_normals: str | None = None) -> Cloth:
+    """contact_normals: the truth's contact plane (None: the recovery's default, so the truth is
+    simulated as the output is)."""
     return Cloth(g.rest, g.faces, x, seams=g.seams, groups=g.panel[g.faces[:, 0]],
                  materials=[truth_material(bend_stiffness, compliance_scale)] * len(g.panels), body=body,
-                 grain=g.face_grain())
+                 grain=g.face_grain(), contact_normals=contact_normals or RecoverOptions.contact_normals)
 
 
 def drape_truth(g: Garment, body, bend_stiffness: float, max_steps: int = 600, cancel=None,
-                compliance_scale: float = 1.0):
+                compliance_scale: float = 1.0, contact_normals: str | None = None):
     """The ground-truth drape of garment g on body (V, F): (Cloth, DrapeResult); the default
     material's stretch compliances × compliance_scale. Raises RuntimeError when the garment did
     not stay on the body (its top sank more than MAX_TOP_DROP below where it was placed) or the
     drape did not converge."""
-    cloth = _truth_cloth(g, g.x0, body, bend_stiffness, compliance_scale)
+    cloth = _truth_cloth(g, g.x0, body, bend_stiffness, compliance_scale, contact_normals)
     cloth.sew(cancel=cancel)
     r = cloth.drape(max_steps=max_steps, iterations=40, residual_tol=1e-7, refine_iterations=120, raise_on_divergence=False,
                     cancel=cancel)
@@ -140,7 +143,7 @@ def drape_truth(g: Garment, body, bend_stiffness: float, max_steps: int = 600, c
 
 
 def settle_fine_truth(g: Garment, x, fine: Garment, body, bend_stiffness: float, compliance_scale: float = 1.0,
-                      cancel=None, friction: float | None = None):
+                      cancel=None, friction: float | None = None, contact_normals: str | None = None):
     """The ground truth on a finer mesh `fine` of the same garment g (same template and
     measurements, another edge length): every fine vertex starts at g's drape x (V, 3) m of its
     pattern location, pushed out of the body, then XPBD until it stands still (Cloth.settle;
@@ -149,7 +152,7 @@ def settle_fine_truth(g: Garment, x, fine: Garment, body, bend_stiffness: float,
     truth is settled as the output is). Returns (Cloth, SettleResult); raises RuntimeError when it
     does not settle."""
     x0 = transfer_positions(g, x, fine)
-    cloth = _truth_cloth(fine, x0, body, bend_stiffness, compliance_scale)
+    cloth = _truth_cloth(fine, x0, body, bend_stiffness, compliance_scale, contact_normals)
     mu = RecoverOptions.output_friction if friction is None else friction
     s = settle_carried(cloth, x0, body[0], body[1], FINE_TRUTH_STEPS, RecoverOptions.output_drape_sweeps,
                        cancel=cancel, friction=mu)
@@ -261,13 +264,15 @@ def make_case(template: str = "skirt", seed: int = 0, bend_stiffness: float | No
               measurements: dict | None = None, edge: float = 0.04, units: str = "cm", up: str = "y",
               noise: float = 0.002, holes: int = 3, fragments: int = 3, shape_sd: float = 0.5,
               max_steps: int = 600, model: BodyModel | None = None, truth_edge: float | None = None,
-              compliance_scale: float = 1.0, friction: float | None = None) -> SyntheticCase:
+              compliance_scale: float = 1.0, friction: float | None = None,
+              contact_normals: str | None = None) -> SyntheticCase:
     """One ground-truth case. Unless given: measurements perturbed ±5–15%, bend stiffness
     log-uniform in [1e-6, 1e-4] N·m, body shape random (rest pose), the default stretch
     compliances (× compliance_scale). The truth is draped on a mesh
     of `edge` (m); with truth_edge < edge it is then carried to a mesh of truth_edge and settled
     there (settle_fine_truth): the truth of a ~10k-vertex output (a 4 cm cloth folds as a 4 cm
-    mesh can, and a 1 cm one does not hang the same way)."""
+    mesh can, and a 1 cm one does not hang the same way). contact_normals: the truth's contact
+    plane (face | smooth; None: the recovery's default)."""
     if template not in PERTURBED:
         raise ValueError(f"template: synthetic cases exist for {sorted(PERTURBED)}, got {template!r}")
     if truth_edge is not None and not 0.005 <= truth_edge < edge:
@@ -281,12 +286,14 @@ def make_case(template: str = "skirt", seed: int = 0, bend_stiffness: float | No
     params = random_body(model, rng, shape_sd)
     bv, bf = model.pose(params), np.asarray(model.faces)
     g = make_template(template, landmarks=model.landmarks(params), edge_length=edge, **meas)
-    cloth, r = drape_truth(g, (bv, bf), k, max_steps, compliance_scale=compliance_scale)
+    cloth, r = drape_truth(g, (bv, bf), k, max_steps, compliance_scale=compliance_scale,
+                           contact_normals=contact_normals)
     x = np.array(cloth.x)
     drape = {"steps": r.steps, "residual": r.residual, "max_penetration_m": r.max_penetration}
     if truth_edge is not None:
         fine = make_template(template, landmarks=model.landmarks(params), edge_length=truth_edge, **meas)
-        cloth, s = settle_fine_truth(g, x, fine, (bv, bf), k, compliance_scale, friction=friction)
+        cloth, s = settle_fine_truth(g, x, fine, (bv, bf), k, compliance_scale, friction=friction,
+                                     contact_normals=contact_normals)
         g, x = fine, np.array(cloth.x)
         drape = {"coarse": drape, "edge_m": truth_edge, "settle": s.to_json()}
     V, F, L = scan_like(x, g.faces, bv, bf, GARMENT_LABEL[template], rng, noise, holes,
