@@ -8,6 +8,7 @@ import tempfile
 import pathlib
 
 import numpy as np
+import pytest
 
 from diffavatar_core import _core
 from diffavatar_core.sim import drape_job
@@ -109,3 +110,13 @@ def test_long_sleeve_reanchoring_converges_with_the_smooth_plane():
     _, res = cloth.refine(anchor=x, residual_tol=1e-7, refine_iterations=120)
     assert res <= 1e-7
     assert np.linalg.norm(np.array(cloth.x) - x, axis=1).max() < 1e-4
+
+
+def test_an_unknown_contact_plane_is_named():
+    from diffavatar_core.sim import Cloth
+    from diffavatar_core.sim.scenes import grid_sheet
+    rest, F = grid_sheet(0.1, 0.1, 3, 3)
+    x0 = np.column_stack([rest, np.zeros(len(rest))])
+    with pytest.raises(ValueError, match="contact_normals.*smooth"):
+        Cloth(rest, F, x0, contact_normals="phong")
+    assert not Cloth(rest, F, x0).model.smooth_contact
