@@ -2,6 +2,7 @@
 // through the core's BVH (geometry/triangle_mesh_bvh.hpp). The body may move between steps:
 // set_vertices refits the tree in O(#Fb).
 #pragma once
+#include <cmath>
 #include <memory>
 #include <vector>
 
@@ -24,11 +25,15 @@ struct Contact {
 
 /// The contact's barycentrics on the body V (m), F: its detection point's closest point in its
 /// region (contact_kernel.hpp region_barycentrics) — what they were at detection, and how they
-/// follow the body when it moves under a held contact.
+/// follow the body when it moves under a held contact. A degenerate triangle (no finite
+/// barycentrics) keeps the previous ones.
 inline void update_barycentrics(Contact& c, const RowMatX3d& V, const RowMatX3i& F) {
   V3<double> b[3], at{c.at.x(), c.at.y(), c.at.z()};
   for (int k = 0; k < 3; ++k) b[k] = {V(F(c.tri, k), 0), V(F(c.tri, k), 1), V(F(c.tri, k), 2)};
-  region_barycentrics(at, b, c.region, c.w);
+  double w[3];
+  region_barycentrics(at, b, c.region, w);
+  if (std::isfinite(w[0]) && std::isfinite(w[1]) && std::isfinite(w[2]))
+    for (int k = 0; k < 3; ++k) c.w[k] = w[k];
 }
 
 /// The contact's plane (smooth or face, contact_kernel.hpp) on body vertices V (m) with unit vertex
