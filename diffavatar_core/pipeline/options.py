@@ -7,9 +7,9 @@ import math
 from dataclasses import dataclass, field, fields, replace
 
 from ..config import load_config
+from ..sim.cloth import CONTACT_NORMALS
 
 PARAMETRIZATIONS = ("cage", "vertices")
-CONTACT_NORMALS = ("face", "smooth")     # sim.cloth.CONTACT_NORMALS
 OPTIMIZERS = ("lbfgs", "adam")
 BENDING = ("garment", "panel", "fixed")
 STRETCH = ("fixed", "garment")

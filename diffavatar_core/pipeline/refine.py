@@ -55,9 +55,7 @@ def push_outside(x, body_vertices, body_faces, thickness: float, smooth: bool = 
     x = np.array(x, np.float64)
     bv = np.ascontiguousarray(body_vertices, np.float64)
     bf = np.ascontiguousarray(body_faces, np.int32)
-    _, _, cp = _core.closest_points_on_mesh(bv, bf, x)
-    _, _, n = _core.contact_planes(bv, bf, x, bool(smooth))
-    cp = np.asarray(cp)
+    _, cp, n = _core.contact_planes(bv, bf, x, bool(smooth))
     near = ((x - cp) * n).sum(1) < thickness
     x[near] = cp[near] + thickness * n[near]
     return x

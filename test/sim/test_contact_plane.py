@@ -91,7 +91,7 @@ def test_plane_turns_continuously_across_a_convex_edge():
     n_left, n_right = np.array([-s, 0, c]), np.array([s, 0, c])
     assert np.abs(P[on_ridge] @ (n_left - n_right)).max() > 1e-3
     # the face plane is one of those two
-    _, qf, nf = _core.contact_planes(V, F, P, False)
+    _, _, nf = _core.contact_planes(V, F, P, False)
     assert np.all(np.minimum(np.linalg.norm(nf - n_left, axis=1), np.linalg.norm(nf - n_right, axis=1)) < 1e-12)
 
 

@@ -501,20 +501,13 @@ void reverse_step(const XpbdSolver& S, const StepTape& tape, const SimParams& p,
       a.body_normals_bar.row(b) += row.segment<3>(9 + 3 * q);
     }
     // w = region_barycentrics(at, b): `at` is the vertex's predicted position, where a.x now is.
-    if (!m.smooth_contact || ct.region >= 4) continue;  // the face plane has no w; at a corner w is constant
-    using D = Dual<12>;
-    V3<D> at{D::var(ct.at.x(), 0), D::var(ct.at.y(), 1), D::var(ct.at.z(), 2)}, bd[3];
-    for (int q = 0; q < 3; ++q) {
-      const int b = m.body_faces(ct.tri, q);
-      bd[q] = {D::var(S.control().body_vertices(b, 0), 3 + 3 * q), D::var(S.control().body_vertices(b, 1), 4 + 3 * q),
-               D::var(S.control().body_vertices(b, 2), 5 + 3 * q)};
-    }
-    D w[3];
-    region_barycentrics(at, bd, ct.region, w);
-    Eigen::Matrix<double, 12, 1> gw = Eigen::Matrix<double, 12, 1>::Zero();
-    for (int k = 0; k < 3; ++k) gw += row[18 + k] * w[k].g;
-    a.x.row(ct.vertex) += gw.head<3>().transpose();
-    for (int q = 0; q < 3; ++q) a.g.body_vertices.row(m.body_faces(ct.tri, q)) += gw.segment<3>(3 + 3 * q).transpose();
+    if (!m.smooth_contact) continue;  // the face plane has no w
+    Vec3 b[3], gb[3] = {Vec3::Zero(), Vec3::Zero(), Vec3::Zero()}, g_at = Vec3::Zero();
+    for (int q = 0; q < 3; ++q) b[q] = S.control().body_vertices.row(m.body_faces(ct.tri, q)).transpose();
+    const double wbar[3] = {row[18], row[19], row[20]};
+    region_barycentrics_vjp(ct.at, b, ct.region, wbar, &g_at, gb);
+    a.x.row(ct.vertex) += g_at.transpose();
+    for (int q = 0; q < 3; ++q) a.g.body_vertices.row(m.body_faces(ct.tri, q)) += gb[q].transpose();
   }
   // Prediction: x̃ = x + dt (decay v + dt g) for free vertices; pinned stay.
   RowMatX3d& vb = a.vnext;

@@ -110,8 +110,8 @@ void bind_body(py::module_& m) {
         },
         py::arg("V"), py::arg("F"), py::arg("P"), py::arg("smooth"),
         "The cloth–body contact plane (sim/contact_kernel.hpp) of each point P (#P×3, m) on the body "
-        "(V m, F) — smooth: the closest point q and the interpolated vertex normal n; else the closest "
-        "triangle's plane (q its first vertex): (triangle #P, q #P×3, n #P×3).");
+        "(V m, F): the closest point q and the plane's normal n — smooth: the interpolated vertex normal; "
+        "else the closest triangle's: (triangle #P, q #P×3, n #P×3).");
 }
 
 }  // namespace diffavatar

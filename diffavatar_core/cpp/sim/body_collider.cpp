@@ -41,10 +41,9 @@ ContactPlanes contact_planes(const RowMatX3d& V, const RowMatX3i& F, const RowMa
   for (long i = 0; i < n; ++i) {
     const SurfaceHit h = bvh.closest(P.row(i).transpose());
     const Contact c{static_cast<int>(i), h.tri, {h.bary[0], h.bary[1], h.bary[2]}, h.region, P.row(i).transpose()};
-    const ContactFrame f = contact_frame(smooth, c, V, N, F);
     out.tri[i] = h.tri;
-    out.q.row(i) = f.q.transpose();
-    out.n.row(i) = f.n.transpose();
+    out.q.row(i) = h.point.transpose();  // on either plane
+    out.n.row(i) = contact_frame(smooth, c, V, N, F).n.transpose();
   }
   return out;
 }

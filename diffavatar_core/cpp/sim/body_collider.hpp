@@ -49,8 +49,9 @@ inline ContactFrame contact_frame(bool smooth, const Contact& c, const RowMatX3d
 }
 
 /// The contact plane (smooth or face, contact_kernel.hpp) at each point's closest point on the
-/// body (V m, F): triangle (−1 for no body), plane point q and unit normal n (#P×3). What a contact
-/// detected at P would hold (cloth.py's friction-cone check, refine.py's push_outside).
+/// body (V m, F): triangle (−1 for no body), the closest point q (on the plane either way) and the
+/// plane's unit normal n (#P×3). What a contact detected at P would hold (cloth.py's friction-cone
+/// check, refine.py's push_outside).
 struct ContactPlanes {
   VecXi tri;
   RowMatX3d q, n;

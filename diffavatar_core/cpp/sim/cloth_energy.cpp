@@ -292,7 +292,12 @@ ControlGradient mixed_product(const EnergyContext& c, const RowMatX3d& x, const 
   }
   RowMatX3d gN;  // gradient w.r.t. the body's vertex normals, carried to its vertices at the end
   for (const Contact& ct : c.contacts) {
-    ContactFrame f = frame_of(c, ct);
+    Vec3 b[3], N[3];
+    for (int k = 0; k < 3; ++k) {
+      b[k] = c.control.body_vertices.row(m.body_faces(ct.tri, k)).transpose();
+      N[k] = c.cache.body_normals.row(m.body_faces(ct.tri, k)).transpose();
+    }
+    const ContactFrame f = contact_frame(m.smooth_contact, b, N, ct.w);
     const Vec3 p = x.row(ct.vertex).transpose();
     const double C = contact_gap(p, f, m.thickness);
     if (C >= 0.0) continue;
@@ -300,23 +305,11 @@ ControlGradient mixed_product(const EnergyContext& c, const RowMatX3d& x, const 
     const Vec3 mp = mu.row(ct.vertex).transpose();
     Vec3 gp = Vec3::Zero(), gb[3] = {Vec3::Zero(), Vec3::Zero(), Vec3::Zero()},
          gn[3] = {Vec3::Zero(), Vec3::Zero(), Vec3::Zero()};
-    Vec3 b[3], N[3];
-    for (int k = 0; k < 3; ++k) {
-      b[k] = c.control.body_vertices.row(m.body_faces(ct.tri, k)).transpose();
-      N[k] = c.cache.body_normals.row(m.body_faces(ct.tri, k)).transpose();
-    }
     double gw[3] = {0.0, 0.0, 0.0};
     contact_vjp(m.smooth_contact, p, f, b, N, ct.w, m.contact_stiffness * f.n.dot(mp), m.contact_stiffness * C * mp,
                 &gp, gb, gn, gw);
-    if (m.smooth_contact && ct.region < 4) {  // w follows the body: region_barycentrics of the held detection point
-      using D = Dual<9>;
-      V3<D> bd[3], at{D(ct.at.x()), D(ct.at.y()), D(ct.at.z())};
-      for (int k = 0; k < 3; ++k) bd[k] = {D::var(b[k].x(), 3 * k), D::var(b[k].y(), 3 * k + 1), D::var(b[k].z(), 3 * k + 2)};
-      D w[3];
-      region_barycentrics(at, bd, ct.region, w);
-      for (int k = 0; k < 3; ++k)
-        for (int j = 0; j < 3; ++j) gb[j] += gw[k] * w[k].g.segment<3>(3 * j);
-    }
+    Vec3 g_at = Vec3::Zero();  // the held detection point is not a variable here
+    if (m.smooth_contact) region_barycentrics_vjp(ct.at, b, ct.region, gw, &g_at, gb);  // w follows the body
     if (gN.rows() == 0) gN = RowMatX3d::Zero(c.control.body_vertices.rows(), 3);
     for (int k = 0; k < 3; ++k) {
       g.body_vertices.row(m.body_faces(ct.tri, k)) += gb[k].transpose();

@@ -73,6 +73,23 @@ void region_barycentrics(const V3<T>& at, const V3<T> b[3], int region, T w[3]) 
   }
 }
 
+/// Vector–Jacobian product of region_barycentrics: Σ_k wbar_k ∂w_k/∂(at, b0, b1, b2), added to
+/// *g_at and gb[k] (a corner's w is constant: nothing added).
+inline void region_barycentrics_vjp(const Vec3& at, const Vec3 b[3], int region, const double wbar[3], Vec3* g_at,
+                                    Vec3 gb[3]) {
+  if (region >= 4) return;
+  using D = Dual<12>;
+  V3<D> a{D::var(at.x(), 0), D::var(at.y(), 1), D::var(at.z(), 2)}, bd[3];
+  for (int k = 0; k < 3; ++k)
+    bd[k] = {D::var(b[k].x(), 3 + 3 * k), D::var(b[k].y(), 4 + 3 * k), D::var(b[k].z(), 5 + 3 * k)};
+  D w[3];
+  region_barycentrics(a, bd, region, w);
+  Eigen::Matrix<double, 12, 1> g = Eigen::Matrix<double, 12, 1>::Zero();
+  for (int k = 0; k < 3; ++k) g += wbar[k] * w[k].g;
+  *g_at += g.head<3>();
+  for (int k = 0; k < 3; ++k) gb[k] += g.segment<3>(3 + 3 * k);
+}
+
 /// Vector–Jacobian product of ψ = c̄ C + ḡ·∇ₚC (∇ₚC = n̂; the forms the energy's mixed product and
 /// the XPBD projection's adjoint need), with v = c̄ (p − q) + ḡ: ∂ψ/∂p = c̄ n̂, and
 ///  - face: with n = e1 × e2 (e1 = b1 − b0, e2 = b2 − b0), y = (I − n̂ n̂ᵀ) v/|n|: ∂ψ/∂b1 = e2 × y,

@@ -31,7 +31,11 @@ void XpbdSolver::set_control(ClothControl control) {
   if (model_.masses_follow_rest) set_lumped_masses(model_, control.rest);
   control_ = std::move(control);
   collider_.set_vertices(control_.body_vertices);
-  set_contacts(std::move(contacts_));  // their planes follow the body
+  // Held contacts follow the body: a smooth contact's barycentrics (its detection point's closest
+  // point in its region) and every contact's plane.
+  if (model_.smooth_contact)
+    for (Contact& c : contacts_) update_barycentrics(c, control_.body_vertices, model_.body_faces);
+  set_contacts(std::move(contacts_));
   bump_revision();
 }
 
@@ -55,11 +59,9 @@ ClothState XpbdSolver::make_state(const RowMatX3d& x) const {
 void XpbdSolver::set_contacts(std::vector<Contact> contacts) {
   contacts_ = std::move(contacts);
   frames_.resize(contacts_.size());
-  for (std::size_t j = 0; j < contacts_.size(); ++j) {
-    update_barycentrics(contacts_[j], control_.body_vertices, model_.body_faces);
+  for (std::size_t j = 0; j < contacts_.size(); ++j)
     frames_[j] = contact_frame(model_.smooth_contact, contacts_[j], control_.body_vertices, cache_.body_normals,
                                model_.body_faces);
-  }
 }
 
 void XpbdSolver::detect_contacts(const RowMatX3d& x, const SimParams& p) {
