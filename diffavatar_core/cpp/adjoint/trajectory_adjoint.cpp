@@ -39,60 +39,6 @@ void rest_inverse(const T u[3][2], T B[4]) {
   B[3] = a / det;
 }
 
-/// Hinge (bending_kernel.hpp, dihedral_gradient): ∇θ and, for the reverse projection's
-/// Hessian-vector product, its directional derivative D(∇θ)[v] by differentiating the same closed
-/// form once (forward mode, by hand). θ itself comes from the tape. `ok` is false when degenerate
-/// (the same test as the forward projection, which then skipped the hinge).
-struct HingeGeom {
-  using V = Eigen::Vector3d;
-  V e, ca, da, eh, n1, n2, m1, m2;
-  double el, q1, q2, t3, t4, iel, iq1, iq2;  // iel = 1/|e|, iq = 1/q
-  bool ok;
-  V g[4];  // ∇_a θ, ∇_b θ, ∇_c θ, ∇_d θ
-
-  // With c − b = (c − a) − e and e·ê = |e|: (c−b)·ê = t3 − |e|, (d−b)·ê = t4 − |e|, and
-  // ∇_a θ = −(∇_b θ + ∇_c θ + ∇_d θ) (translation invariance); likewise for the tangent.
-  explicit HingeGeom(const double* x) {
-    const Eigen::Map<const V> a(x), b(x + 3), c(x + 6), d(x + 9);
-    e = b - a;
-    ca = c - a;
-    da = d - a;
-    el = e.norm();
-    n1 = e.cross(ca);
-    n2 = da.cross(e);
-    q1 = n1.squaredNorm();
-    q2 = n2.squaredNorm();
-    ok = !(el < 1e-12 || q1 < 1e-30 || q2 < 1e-30);
-    if (!ok) return;
-    iel = 1.0 / el;
-    iq1 = 1.0 / q1;
-    iq2 = 1.0 / q2;
-    eh = e * iel;
-    m1 = n1 * iq1;
-    m2 = n2 * iq2;
-    t3 = ca.dot(eh);
-    t4 = da.dot(eh);
-    g[1] = t3 * m1 + t4 * m2;
-    g[2] = -el * m1;
-    g[3] = -el * m2;
-    g[0] = -(g[1] + g[2] + g[3]);
-  }
-  /// gt[k] = D(∇_k θ)[v], v = (v_a, v_b, v_c, v_d) as 12 doubles.
-  void tangent(const double* v, V gt[4]) const {
-    const Eigen::Map<const V> va(v), vb(v + 3), vc(v + 6), vd(v + 9);
-    const V de = vb - va, dca = vc - va, dda = vd - va;
-    const V dn1 = de.cross(ca) + e.cross(dca), dn2 = dda.cross(e) + da.cross(de);
-    const double del = eh.dot(de);
-    const V deh = (de - eh * del) * iel;
-    const V dm1 = (dn1 - m1 * (2.0 * n1.dot(dn1))) * iq1, dm2 = (dn2 - m2 * (2.0 * n2.dot(dn2))) * iq2;
-    const double dt3 = dca.dot(eh) + ca.dot(deh), dt4 = dda.dot(eh) + da.dot(deh);
-    gt[1] = dt3 * m1 + t3 * dm1 + dt4 * m2 + t4 * dm2;
-    gt[2] = -del * m1 - el * dm1;
-    gt[3] = -del * m2 - el * dm2;
-    gt[0] = -(gt[1] + gt[2] + gt[3]);
-  }
-};
-
 /// Derivatives of the rest-shape quantities w.r.t. the rest coordinates u; constant during one
 /// adjoint call (the control is fixed), so computed once instead of once per projection.
 struct RestDerivs {

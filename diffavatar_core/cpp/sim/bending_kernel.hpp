@@ -60,6 +60,73 @@ inline bool dihedral_gradient(const Vec3& a, const Vec3& b, const Vec3& c, const
   return true;
 }
 
+/// ∇θ of dihedral_gradient and its directional derivative D(∇θ)[v], the same closed form
+/// differentiated once (forward mode, by hand): the trajectory adjoint's Hessian-vector products
+/// and, column by column, the Newton Hessian ∇²θ. θ itself is not computed (the tape has it).
+/// `ok` is false when degenerate (the same test as dihedral_gradient).
+struct HingeGeom {
+  using V = Eigen::Vector3d;
+  V e, ca, da, eh, n1, n2, m1, m2;
+  double el, q1, q2, t3, t4, iel, iq1, iq2;  // iel = 1/|e|, iq = 1/q
+  bool ok;
+  V g[4];  // ∇_a θ, ∇_b θ, ∇_c θ, ∇_d θ
+
+  // With c − b = (c − a) − e and e·ê = |e|: (c−b)·ê = t3 − |e|, (d−b)·ê = t4 − |e|, and
+  // ∇_a θ = −(∇_b θ + ∇_c θ + ∇_d θ) (translation invariance); likewise for the tangent.
+  explicit HingeGeom(const double* x) {
+    const Eigen::Map<const V> a(x), b(x + 3), c(x + 6), d(x + 9);
+    e = b - a;
+    ca = c - a;
+    da = d - a;
+    el = e.norm();
+    n1 = e.cross(ca);
+    n2 = da.cross(e);
+    q1 = n1.squaredNorm();
+    q2 = n2.squaredNorm();
+    ok = !(el < 1e-12 || q1 < 1e-30 || q2 < 1e-30);
+    if (!ok) return;
+    iel = 1.0 / el;
+    iq1 = 1.0 / q1;
+    iq2 = 1.0 / q2;
+    eh = e * iel;
+    m1 = n1 * iq1;
+    m2 = n2 * iq2;
+    t3 = ca.dot(eh);
+    t4 = da.dot(eh);
+    g[1] = t3 * m1 + t4 * m2;
+    g[2] = -el * m1;
+    g[3] = -el * m2;
+    g[0] = -(g[1] + g[2] + g[3]);
+  }
+  /// gt[k] = D(∇_k θ)[v], v = (v_a, v_b, v_c, v_d) as 12 doubles.
+  void tangent(const double* v, V gt[4]) const {
+    const Eigen::Map<const V> va(v), vb(v + 3), vc(v + 6), vd(v + 9);
+    const V de = vb - va, dca = vc - va, dda = vd - va;
+    const V dn1 = de.cross(ca) + e.cross(dca), dn2 = dda.cross(e) + da.cross(de);
+    const double del = eh.dot(de);
+    const V deh = (de - eh * del) * iel;
+    const V dm1 = (dn1 - m1 * (2.0 * n1.dot(dn1))) * iq1, dm2 = (dn2 - m2 * (2.0 * n2.dot(dn2))) * iq2;
+    const double dt3 = dca.dot(eh) + ca.dot(deh), dt4 = dda.dot(eh) + da.dot(deh);
+    gt[1] = dt3 * m1 + t3 * dm1 + dt4 * m2 + t4 * dm2;
+    gt[2] = -del * m1 - el * dm1;
+    gt[3] = -del * m2 - el * dm2;
+    gt[0] = -(gt[1] + gt[2] + gt[3]);
+  }
+  /// ∇²θ (12×12, 1/m²) over (a, b, c, d): the tangents along the unit vectors, symmetrized.
+  Eigen::Matrix<double, 12, 12> hessian() const {
+    Eigen::Matrix<double, 12, 12> H;
+    double v[12] = {0.0};
+    V gt[4];
+    for (int j = 0; j < 12; ++j) {
+      v[j] = 1.0;
+      tangent(v, gt);
+      for (int k = 0; k < 4; ++k) H.block<3, 1>(3 * k, j) = gt[k];
+      v[j] = 0.0;
+    }
+    return 0.5 * (H + H.transpose());
+  }
+};
+
 /// One XPBD projection of a hinge: Δλ = −(C + α̃λ)/(Σ w_k|∇_k C|² + α̃), Δx_k = w_k ∇_k C Δλ.
 /// theta_out (or null) receives the measured θ (rad) for the adjoint's tape.
 inline void project_bending(Vec3* p[4], const double w[4], double theta0, double alpha_tilde, double* lambda,

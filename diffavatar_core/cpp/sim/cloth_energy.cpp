@@ -18,18 +18,17 @@ V3<T> var3(const RowMatX3d& X, int i, int off) {
   return {T::var(X(i, 0), off), T::var(X(i, 1), off + 1), T::var(X(i, 2), off + 2)};
 }
 
-// Triangle: Q_a = ½ Ā ε_a² (ε in the grain frame) as jets over z = [x0 x1 x2 (9) | ū0 ū1 ū2 (6 if NZ = 15)];
-// E = Σ_a Q_a / α_a.
-template <int NZ>
-std::array<Jet<NZ>, 3> tri_terms(const EnergyContext& c, const RowMatX3d& x, int t) {
-  using J = Jet<NZ>;
+// Triangle: Q_a = ½ Ā ε_a² (ε in the grain frame) as jets over z = [x0 x1 x2 (9) | ū0 ū1 ū2 (6)] for
+// the mixed derivatives ∂²E/∂x∂ū; E = Σ_a Q_a / α_a. (∇ₓE and ∇ₓ²E: stretch_derivatives.)
+std::array<Jet<15>, 3> tri_terms(const EnergyContext& c, const RowMatX3d& x, int t) {
+  using J = Jet<15>;
   V3<J> xs[3];
   J u[3][2];
   for (int k = 0; k < 3; ++k) {
     int i = c.model.faces(t, k);
     xs[k] = var3<J>(x, i, 3 * k);
     for (int d = 0; d < 2; ++d)
-      u[k][d] = NZ == 15 ? J::var(c.control.rest(i, d), 9 + 2 * k + d) : J(c.control.rest(i, d));
+      u[k][d] = J::var(c.control.rest(i, d), 9 + 2 * k + d);
   }
   J ug[3][2];  // rest corners in the grain frame (grain_frame.hpp); ∂/∂ū chains through R(−g)
   to_grain_frame(c.model.tri_frame[t], u, ug);
@@ -38,29 +37,21 @@ std::array<Jet<NZ>, 3> tri_terms(const EnergyContext& c, const RowMatX3d& x, int
   return {0.5 * A * e[0] * e[0], 0.5 * A * e[1] * e[1], 0.5 * A * e[2] * e[2]};
 }
 
-// Hinge: θ as a jet over x (12); w as a dual over ū (8).
-struct HingeTerms {
-  Jet<12> theta;
-  Dual<8> w;
-  bool ok;
-};
-HingeTerms hinge_terms(const EnergyContext& c, const RowMatX3d& x, int h) {
-  HingeTerms r;
-  V3<Jet<12>> xs[4];
-  Dual<8> u[4][2];
-  for (int k = 0; k < 4; ++k) {
-    int i = c.model.hinges(h, k);
-    xs[k] = var3<Jet<12>>(x, i, 3 * k);
-    for (int d = 0; d < 2; ++d) u[k][d] = Dual<8>::var(c.control.rest(i, d), 2 * k + d);
-  }
-  Vec3 a = x.row(c.model.hinges(h, 0)), b = x.row(c.model.hinges(h, 1));
-  Vec3 cc = x.row(c.model.hinges(h, 2)), d = x.row(c.model.hinges(h, 3));
-  Vec3 e = b - a;
-  r.ok = e.norm() > 1e-12 && e.cross(cc - a).squaredNorm() > 1e-30 && (d - a).cross(e).squaredNorm() > 1e-30;
-  if (!r.ok) return r;
-  r.theta = dihedral_angle(xs[0], xs[1], xs[2], xs[3]) - c.model.hinge_rest_angle[h];
-  r.w = hinge_weight(u[0], u[1], u[2], u[3]);
-  return r;
+void corners(const ClothModel& m, const RowMatX3d& x, int t, Vec3 xs[3]) {
+  for (int k = 0; k < 3; ++k) xs[k] = x.row(m.faces(t, k)).transpose();
+}
+
+// Hinge h: its corners (12, m), θ − θ0 (rad) and ∇θ (12, 1/m) by dihedral_gradient; false if degenerate.
+bool hinge_angle(const ClothModel& m, const RowMatX3d& x, int h, double xs[12], double* theta,
+                 Eigen::Matrix<double, 12, 1>* g) {
+  for (int k = 0; k < 4; ++k)
+    for (int d = 0; d < 3; ++d) xs[3 * k + d] = x(m.hinges(h, k), d);
+  Vec3 g4[4];
+  const Eigen::Map<const Vec3> a(xs), b(xs + 3), cc(xs + 6), dd(xs + 9);
+  if (!dihedral_gradient(a, b, cc, dd, theta, g4)) return false;
+  *theta -= m.hinge_rest_angle[h];
+  for (int k = 0; k < 4; ++k) g->segment<3>(3 * k) = g4[k];
+  return true;
 }
 
 // Contact: its plane (contact_kernel.hpp) on the control's body; C = n̂·(p − q) − h is linear in p.
@@ -131,9 +122,10 @@ RowMatX3d energy_gradient(const EnergyContext& c, const RowMatX3d& x) {
   std::vector<Eigen::Matrix<double, 9, 1>> gt(m.faces.rows());
 #pragma omp parallel for schedule(static) if (m.faces.rows() >= 256)
   for (int t = 0; t < m.faces.rows(); ++t) {
-    auto q = tri_terms<9>(c, x, t);
-    gt[t].setZero();
-    for (int a = 0; a < 3; ++a) gt[t] += q[a].g / c.control.stretch_compliance(m.tri_group[t], a);
+    Vec3 xs[3];
+    corners(m, x, t, xs);
+    stretch_derivatives(xs, c.cache.tri[t], c.control.stretch_compliance.row(m.tri_group[t]).transpose(), &gt[t],
+                        nullptr);
   }
   std::vector<Eigen::Matrix<double, 12, 1>> gh(m.hinges.rows());
 #pragma omp parallel for schedule(static) if (m.hinges.rows() >= 256)
@@ -141,14 +133,10 @@ RowMatX3d energy_gradient(const EnergyContext& c, const RowMatX3d& x) {
     gh[h].setZero();
     double k = c.control.bend_stiffness[m.hinge_group[h]];
     if (k == 0.0) continue;
-    double th;
-    Vec3 g4[4];
-    const auto& H4 = m.hinges.row(h);
-    if (!dihedral_gradient(x.row(H4[0]).transpose(), x.row(H4[1]).transpose(), x.row(H4[2]).transpose(),
-                           x.row(H4[3]).transpose(), &th, g4))
-      continue;
-    double s = k * c.cache.hinge_weight[h] * (th - m.hinge_rest_angle[h]);
-    for (int j = 0; j < 4; ++j) gh[h].segment<3>(3 * j) = s * g4[j];
+    double xs[12], th;
+    Eigen::Matrix<double, 12, 1> g;
+    if (!hinge_angle(m, x, h, xs, &th, &g)) continue;
+    gh[h] = k * c.cache.hinge_weight[h] * th * g;
   }
   for (int t = 0; t < m.faces.rows(); ++t)
     for (int k = 0; k < 3; ++k) G.row(m.faces(t, k)) += gt[t].segment<3>(3 * k).transpose();
@@ -176,9 +164,11 @@ Eigen::SparseMatrix<double> energy_hessian(const EnergyContext& c, const RowMatX
   std::vector<Eigen::Matrix<double, 12, 12>> Hh(m.hinges.rows());
 #pragma omp parallel for schedule(static) if (m.faces.rows() >= 256)
   for (int t = 0; t < m.faces.rows(); ++t) {
-    auto q = tri_terms<9>(c, x, t);
-    Ht[t].setZero();
-    for (int a = 0; a < 3; ++a) Ht[t] += q[a].H / c.control.stretch_compliance(m.tri_group[t], a);
+    Vec3 xs[3];
+    Eigen::Matrix<double, 9, 1> g;
+    corners(m, x, t, xs);
+    stretch_derivatives(xs, c.cache.tri[t], c.control.stretch_compliance.row(m.tri_group[t]).transpose(), &g,
+                        &Ht[t]);
     if (psd) Ht[t] = project_psd<9>(Ht[t]);
   }
 #pragma omp parallel for schedule(static) if (m.hinges.rows() >= 256)
@@ -186,9 +176,11 @@ Eigen::SparseMatrix<double> energy_hessian(const EnergyContext& c, const RowMatX
     Hh[h].setZero();
     double k = c.control.bend_stiffness[m.hinge_group[h]];
     if (k == 0.0) continue;
-    HingeTerms r = hinge_terms(c, x, h);
-    if (!r.ok) continue;
-    Hh[h] = k * r.w.v * (r.theta.g * r.theta.g.transpose() + r.theta.v * r.theta.H);
+    double xs[12], th;
+    Eigen::Matrix<double, 12, 1> g;
+    if (!hinge_angle(m, x, h, xs, &th, &g)) continue;
+    // ∇²(½ k w θ²) = k w (∇θ ∇θᵀ + θ ∇²θ), ∇²θ by HingeGeom (bending_kernel.hpp)
+    Hh[h] = k * c.cache.hinge_weight[h] * (g * g.transpose() + th * HingeGeom(xs).hessian());
     if (psd) Hh[h] = project_psd<12>(Hh[h]);
   }
   std::vector<Eigen::Triplet<double>> trip;
@@ -239,7 +231,7 @@ ControlGradient mixed_product(const EnergyContext& c, const RowMatX3d& x, const 
   std::vector<Eigen::Vector3d> ga(m.faces.rows());
 #pragma omp parallel for schedule(static) if (m.faces.rows() >= 256)
   for (int t = 0; t < m.faces.rows(); ++t) {
-    auto q = tri_terms<15>(c, x, t);
+    auto q = tri_terms(c, x, t);
     Eigen::Matrix<double, 9, 1> ml;
     for (int k = 0; k < 3; ++k) ml.segment<3>(3 * k) = mu.row(m.faces(t, k)).transpose();
     gu[t].setZero();
@@ -254,14 +246,19 @@ ControlGradient mixed_product(const EnergyContext& c, const RowMatX3d& x, const 
 #pragma omp parallel for schedule(static) if (m.hinges.rows() >= 256)
   for (int h = 0; h < m.hinges.rows(); ++h) {
     hu[h].setZero();
-    HingeTerms r = hinge_terms(c, x, h);
-    if (!r.ok) continue;
+    double xs[12], th;
+    Eigen::Matrix<double, 12, 1> gth;
+    if (!hinge_angle(m, x, h, xs, &th, &gth)) continue;
+    Dual<8> u[4][2];  // w over ū (8)
+    for (int k = 0; k < 4; ++k)
+      for (int d = 0; d < 2; ++d) u[k][d] = Dual<8>::var(c.control.rest(m.hinges(h, k), d), 2 * k + d);
+    const Dual<8> w = hinge_weight(u[0], u[1], u[2], u[3]);
     double k = c.control.bend_stiffness[m.hinge_group[h]];
     Eigen::Matrix<double, 12, 1> ml;
     for (int j = 0; j < 4; ++j) ml.segment<3>(3 * j) = mu.row(m.hinges(h, j)).transpose();
-    double s = ml.dot(r.theta.g) * r.theta.v;  // μᵀ θ ∇θ
-    hu[h] = k * s * r.w.g;                      // ∂/∂ū of k w θ ∇θ
-    hk[h] = r.w.v * s;                          // ∂/∂k
+    double s = ml.dot(gth) * th;  // μᵀ θ ∇θ
+    hu[h] = k * s * w.g;          // ∂/∂ū of k w θ ∇θ
+    hk[h] = w.v * s;              // ∂/∂k
   }
   for (int t = 0; t < m.faces.rows(); ++t) {
     for (int k = 0; k < 3; ++k) g.rest.row(m.faces(t, k)) += gu[t].segment<2>(2 * k).transpose();

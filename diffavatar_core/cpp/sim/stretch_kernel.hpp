@@ -56,6 +56,38 @@ inline StretchRest stretch_rest(const Vec2& u0, const Vec2& u1, const Vec2& u2) 
   return {Dm.inverse(), 0.5 * Dm.determinant()};
 }
 
+/// Closed-form gradient (9) and Hessian (9×9) of the stretch energy over the corners
+/// [x0 x1 x2] (m) — what Newton and the equilibrium adjoint need per step, without the jets of
+/// the generic kernels. With f_j = Σ_k c_j[k] x_k the columns of F (c_j[k] = ∂f_j/∂x_k, from B),
+/// κ_a = Ā/α_a (J) and ε as in green_strain:
+///   ∂U/∂f0 = κ0 ε00 f0 + ½κ2 ε01 f1,  ∂U/∂f1 = κ1 ε11 f1 + ½κ2 ε01 f0,
+///   ∂²U/∂f0² = κ0 (f0 f0ᵀ + ε00 I) + ¼κ2 f1 f1ᵀ,  ∂²U/∂f1² = κ1 (f1 f1ᵀ + ε11 I) + ¼κ2 f0 f0ᵀ,
+///   ∂²U/∂f0∂f1 = ¼κ2 f1 f0ᵀ + ½κ2 ε01 I;
+/// ∇_k U = Σ_j c_j[k] ∂U/∂f_j and ∇²_{kl} U = Σ_{ij} c_i[k] c_j[l] ∂²U/∂f_i∂f_j (J/m, J/m²).
+/// H may be null (gradient only). alpha = (α_warp, α_weft, α_shear) in m/N.
+inline void stretch_derivatives(const Vec3 x[3], const StretchRest& r, const Vec3& alpha,
+                                Eigen::Matrix<double, 9, 1>* g, Eigen::Matrix<double, 9, 9>* H) {
+  const Eigen::Matrix2d& B = r.B;
+  const Vec3 d1 = x[1] - x[0], d2 = x[2] - x[0];
+  const Vec3 f0 = d1 * B(0, 0) + d2 * B(1, 0), f1 = d1 * B(0, 1) + d2 * B(1, 1);
+  const double e0 = 0.5 * (f0.squaredNorm() - 1.0), e1 = 0.5 * (f1.squaredNorm() - 1.0), e2 = 0.5 * f0.dot(f1);
+  const double k0 = r.area / alpha[0], k1 = r.area / alpha[1], k2 = r.area / alpha[2];
+  const double c[2][3] = {{-(B(0, 0) + B(1, 0)), B(0, 0), B(1, 0)}, {-(B(0, 1) + B(1, 1)), B(0, 1), B(1, 1)}};
+  const Vec3 P0 = k0 * e0 * f0 + 0.5 * k2 * e2 * f1, P1 = k1 * e1 * f1 + 0.5 * k2 * e2 * f0;
+  for (int k = 0; k < 3; ++k) g->segment<3>(3 * k) = c[0][k] * P0 + c[1][k] * P1;
+  if (!H) return;
+  const Eigen::Matrix3d I = Eigen::Matrix3d::Identity();
+  Eigen::Matrix3d Hf[2][2];
+  Hf[0][0] = k0 * (f0 * f0.transpose() + e0 * I) + 0.25 * k2 * f1 * f1.transpose();
+  Hf[1][1] = k1 * (f1 * f1.transpose() + e1 * I) + 0.25 * k2 * f0 * f0.transpose();
+  Hf[0][1] = 0.25 * k2 * f1 * f0.transpose() + 0.5 * k2 * e2 * I;
+  Hf[1][0] = Hf[0][1].transpose();
+  for (int k = 0; k < 3; ++k)
+    for (int l = 0; l < 3; ++l)
+      H->block<3, 3>(3 * k, 3 * l) = c[0][k] * c[0][l] * Hf[0][0] + c[0][k] * c[1][l] * Hf[0][1] +
+                                     c[1][k] * c[0][l] * Hf[1][0] + c[1][k] * c[1][l] * Hf[1][1];
+}
+
 /// One XPBD projection of the triangle block (3×3 solve of paper Eq. 2):
 /// Δλ = −(∇C W ∇Cᵀ + α̃)⁻¹ (C + α̃ λ), Δx_k = w_k ∇_k Cᵀ Δλ. alpha_tilde = diag(α)/(Ā dt²).
 /// Returns nothing; updates p[0..2] and lambda in place.

@@ -295,8 +295,10 @@ EnergyContext XpbdSolver::energy_context(const Vec3& gravity) const {
 }
 
 double XpbdSolver::residual(const RowMatX3d& x, const Vec3& gravity) const {
-  EnergyContext ctx = energy_context(gravity);
-  RowMatX3d G = energy_gradient(ctx, x);
+  return force_residual(energy_gradient(energy_context(gravity), x), gravity);
+}
+
+double XpbdSolver::force_residual(const RowMatX3d& G, const Vec3& gravity) const {
   double worst = 0.0, wsum = 0.0;
   int nfree = 0;
   for (int i = 0; i < model_.num_vertices; ++i) {
@@ -332,10 +334,10 @@ int XpbdSolver::refine(ClothState& s, const SimParams& p, const DrapeParams& d, 
     // one energy (re-detection between Newton steps makes the iteration cycle).
     if (it == 0 && !keep_contacts) detect_contacts(s.x, p);
     EnergyContext ctx = energy_context(p.gravity);
-    res = residual(s.x, p.gravity);
+    RowMatX3d G = energy_gradient(ctx, s.x);
+    res = force_residual(G, p.gravity);
     rc.report({"refine", it, d.refine_iterations, res});
     if (res <= d.residual_tol || n == 0) break;
-    RowMatX3d G = energy_gradient(ctx, s.x);
     VecXd g(n);
     for (int i = 0; i < model_.num_vertices; ++i)
       if (dof[i] >= 0) g.segment<3>(dof[i]) = G.row(i).transpose();

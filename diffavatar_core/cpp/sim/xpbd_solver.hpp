@@ -107,6 +107,8 @@ class XpbdSolver {
   EnergyContext energy_context(const Vec3& gravity) const;
   /// Force residual max_i |∇ᵢE| / (mean m |g|) over free vertices, with current contacts.
   double residual(const RowMatX3d& x, const Vec3& gravity) const;
+  /// The same from an energy gradient G (#V×3, N) already evaluated.
+  double force_residual(const RowMatX3d& G, const Vec3& gravity) const;
   double max_penetration(const RowMatX3d& x) const { return collider_.max_penetration(x); }
   void detect_contacts(const RowMatX3d& x, const SimParams& p);
   const std::vector<Contact>& contacts() const { return contacts_; }
