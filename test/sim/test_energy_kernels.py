@@ -114,6 +114,44 @@ def test_each_closed_form_term_alone_matches_central_differences(term):
         assert np.abs(H @ t.reshape(-1)).max() < 1e-9 * np.abs(H).max()
 
 
+def _clamp(H):
+    w, V = np.linalg.eigh(0.5 * (H + H.T))
+    return (V * np.maximum(w, 0.0)) @ V.T
+
+
+def test_projected_element_hessians_are_their_eigenvalue_clamps():
+    """Far from equilibrium Newton uses each element Hessian clamped to its non-negative
+    eigenvalues; the core computes that clamp on the element's translation-free subspace
+    (cloth_energy.cpp project_psd). It must equal the clamp of the whole element matrix: a single
+    compressed, sheared triangle (indefinite), and a hinge folded 60° between two stretched
+    triangles (their stretch Hessian is PSD, so the projection changes the hinge part only:
+    expected = stretch + clamp(hinge), the hinge part being the difference with and without
+    bending)."""
+    rest = np.array([[0.0, 0.0], [0.1, 0.0], [0.0, 0.1]])
+    x = np.array([[0.0, 0.0, 0.0], [0.07, 0.01, 0.02], [0.03, 0.08, -0.01]])
+    tri = Cloth(rest, np.array([[0, 1, 2]]), x, materials=ClothMaterial(weft_compliance=3e-3),
+                grain=np.array([0.4]))
+    H = tri.solver.energy_hessian(x, G, project=False).toarray()
+    assert np.linalg.eigvalsh(H).min() < -1e-3 * np.abs(H).max()   # indefinite: the clamp acts
+    Hp = tri.solver.energy_hessian(x, G, project=True).toarray()
+    np.testing.assert_allclose(Hp, _clamp(H), atol=1e-12 * np.abs(H).max())
+
+    rest = np.array([[0.0, 0.0], [0.1, 0.0], [0.05, 0.08], [0.05, -0.08]])
+    F = np.array([[0, 1, 2], [0, 3, 1]])
+    a = np.pi / 3   # triangle 2 turned 60° about the shared edge (the x axis), all stretched 10%
+    x = np.column_stack([rest, np.zeros(4)])
+    x[3] = [0.05, -0.08 * np.cos(a), 0.08 * np.sin(a)]
+    x *= 1.1
+    bent = Cloth(rest, F, x, materials=ClothMaterial(bend_stiffness=1e-3))
+    flat = Cloth(rest, F, x, materials=ClothMaterial(bend_stiffness=0.0))
+    Hs = flat.solver.energy_hessian(x, G, project=False).toarray()
+    assert np.linalg.eigvalsh(Hs).min() > -1e-12 * np.abs(Hs).max()
+    Hh = bent.solver.energy_hessian(x, G, project=False).toarray() - Hs
+    assert np.linalg.eigvalsh(Hh).min() < -1e-3 * np.abs(Hh).max()
+    Hp = bent.solver.energy_hessian(x, G, project=True).toarray()
+    np.testing.assert_allclose(Hp, Hs + _clamp(Hh), atol=1e-10 * np.abs(Hs + Hh).max())
+
+
 def test_rest_state_has_zero_energy_and_no_correction():
     rest, F = grid_sheet(0.2, 0.1, 9, 5)
     x0 = np.column_stack([rest, np.zeros(len(rest))])
