@@ -1,6 +1,7 @@
 #include "sim/xpbd_solver.hpp"
 
 #include <Eigen/SparseCholesky>
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -328,6 +329,23 @@ int XpbdSolver::refine(ClothState& s, const SimParams& p, const DrapeParams& d, 
   double res = INFINITY;
   // Levenberg–Marquardt damping λ·M (λ in 1/s², M the lumped masses): 0 unless a step fails.
   double reg = 0.0;
+  // The Hessian's pattern is the mesh's (contacts and anchors add to its diagonal blocks): the
+  // fill-reducing ordering and symbolic factorization are redone only when it changes (a hinge
+  // turning degenerate drops its entries).
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt;
+  std::vector<int> outer, inner;
+  auto factorize = [&](const Eigen::SparseMatrix<double>& A) {
+    const int* o = A.outerIndexPtr();
+    const int* in = A.innerIndexPtr();
+    if (!(outer.size() == static_cast<std::size_t>(A.outerSize() + 1) &&
+          inner.size() == static_cast<std::size_t>(A.nonZeros()) && std::equal(outer.begin(), outer.end(), o) &&
+          std::equal(inner.begin(), inner.end(), in))) {
+      ldlt.analyzePattern(A);
+      outer.assign(o, o + A.outerSize() + 1);
+      inner.assign(in, in + A.nonZeros());
+    }
+    ldlt.factorize(A);
+  };
   for (; it < d.refine_iterations; ++it) {
     rc.check("equilibrium refinement");
     // The contact set is detected once and then held fixed, so every line search minimises
@@ -353,7 +371,7 @@ int XpbdSolver::refine(ClothState& s, const SimParams& p, const DrapeParams& d, 
         for (int i = 0; i < model_.num_vertices; ++i)
           if (dof[i] >= 0)
             for (int k = 0; k < 3; ++k) Hr.coeffRef(dof[i] + k, dof[i] + k) += reg * model_.mass[i];
-      Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt(Hr);
+      factorize(Hr);
       if (ldlt.info() == Eigen::Success) {
         step = ldlt.solve(-g);
         if (step.allFinite()) break;
