@@ -174,18 +174,41 @@ class ArmTube:
         return point + self.radius * (np.sin(th)[:, None] * ex + np.cos(th)[:, None] * up)
 
 
-def _solve_cap_height(Wb: float, target: float) -> float:
-    """Cap height (m) whose half-cap curve (as drawn in _top_spec) has the armhole's length."""
-    def half_len(h):
+def _solve_cap_height(Wb: float, target: float, tol: float = 1e-12) -> float:
+    """Cap height (m) whose half-cap curve (as drawn in _top_spec) has the armhole's length
+    (target, m): the root of a length increasing with the height, bracketed in [0.01, 1] m and
+    found to tol (m) by the Illinois variant of false position — about ten curve lengths where
+    bisection needed sixty (the measurement fit re-draws the pattern hundreds of times)."""
+    def excess(h):
         p = PanelSpec("c", np.array([[Wb / 2, 0], [0, h], [-Wb / 2, 0]]), None,
                       curves={0: [[Wb / 4 + 0.02, 0.75 * h]]})
-        return p.edge_length(0)
+        return p.edge_length(0) - target
     lo, hi = 0.01, 1.0
-    if half_len(lo) > target:
+    flo, fhi = excess(lo), excess(hi)
+    if flo > 0:
         raise ValueError(f"bicep_width {Wb} m is too wide for an armhole of {target:.3f} m")
-    for _ in range(60):
-        mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if half_len(mid) < target else (lo, mid)
+    if fhi <= 0:
+        return hi
+    side = 0
+    for _ in range(100):
+        mid = (lo * fhi - hi * flo) / (fhi - flo)
+        if not lo < mid < hi:
+            mid = 0.5 * (lo + hi)
+        fm = excess(mid)
+        if fm == 0:
+            return mid
+        if fm < 0:
+            lo, flo = mid, fm
+            if side < 0:
+                fhi *= 0.5   # the same end kept twice: halve its weight (Illinois)
+            side = -1
+        else:
+            hi, fhi = mid, fm
+            if side > 0:
+                flo *= 0.5
+            side = 1
+        if hi - lo <= tol:
+            break
     return 0.5 * (lo + hi)
 
 

@@ -142,3 +142,16 @@ def test_polo_placket_fills_the_notch_cut_for_it():
         A, B = panels[s.panel_a], panels[s.panel_b]
         np.testing.assert_allclose(A[s.edge_a], B[(s.edge_b + 1) % len(B)], atol=1e-12)
         np.testing.assert_allclose(A[(s.edge_a + 1) % len(A)], B[s.edge_b], atol=1e-12)
+
+
+@pytest.mark.parametrize("Wb,armhole", [(0.12, 0.22), (0.16, 0.25), (0.30, 0.20)])
+def test_sleeve_cap_height_gives_the_armhole_length(Wb, armhole):
+    """The sleeve cap's half-curve (as _top_spec draws it) at the solved height has the armhole's
+    length, to 1e-12 m; a bicep too wide for the armhole is refused with the reason."""
+    from diffavatar_core.pattern.spec import PanelSpec
+    from diffavatar_core.pattern.templates import _solve_cap_height
+    h = _solve_cap_height(Wb, armhole)
+    cap = PanelSpec("c", np.array([[Wb / 2, 0], [0, h], [-Wb / 2, 0]]), None, curves={0: [[Wb / 4 + 0.02, 0.75 * h]]})
+    assert abs(cap.edge_length(0) - armhole) < 1e-12
+    with pytest.raises(ValueError, match="too wide"):
+        _solve_cap_height(Wb, 0.5 * Wb)
