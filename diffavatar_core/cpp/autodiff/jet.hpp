@@ -1,8 +1,9 @@
 // Forward-mode automatic differentiation on small, fixed-size local variable vectors.
-// Dual<N>: value + gradient (first order), used in the XPBD hot loop for the hinge constraint.
-// Jet<N>:  value + gradient + Hessian (second order), used to assemble the exact energy
-//          Hessian and the mixed derivatives ∂²E/∂x∂θ for Newton refinement and the
-//          equilibrium adjoint (implicit function theorem, issue 4).
+// Dual<N>: value + gradient (first order): derivatives of rest-shape quantities (areas, D̄⁻¹,
+//          hinge weights) w.r.t. the pattern.
+// Jet<N>:  value + gradient + Hessian (second order): the mixed derivatives ∂²E/∂x∂ū of the
+//          equilibrium adjoint (implicit function theorem, issue 4). Newton's ∇ₓE and ∇ₓ²E are
+//          in closed form (stretch_kernel.hpp, bending_kernel.hpp).
 // Both are exact (no truncation error), so the kernels written once as templates on the scalar
 // type give C, ∇C, ∇²C consistently; the double instantiation is the plain forward value.
 #pragma once

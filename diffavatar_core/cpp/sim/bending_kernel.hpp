@@ -62,7 +62,8 @@ inline bool dihedral_gradient(const Vec3& a, const Vec3& b, const Vec3& c, const
 
 /// ∇θ of dihedral_gradient and its directional derivative D(∇θ)[v], the same closed form
 /// differentiated once (forward mode, by hand): the trajectory adjoint's Hessian-vector products
-/// and, column by column, the Newton Hessian ∇²θ. θ itself is not computed (the tape has it).
+/// and, column by column, the Newton Hessian ∇²θ. θ itself is not computed (the tape or
+/// dihedral_gradient has it).
 /// `ok` is false when degenerate (the same test as dihedral_gradient).
 struct HingeGeom {
   using V = Eigen::Vector3d;

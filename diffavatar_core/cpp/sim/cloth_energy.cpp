@@ -185,9 +185,8 @@ Eigen::SparseMatrix<double> energy_hessian(const EnergyContext& c, const RowMatX
 #pragma omp parallel for schedule(static) if (m.faces.rows() >= 256)
   for (int t = 0; t < m.faces.rows(); ++t) {
     Vec3 xs[3];
-    Eigen::Matrix<double, 9, 1> g;
     corners(m, x, t, xs);
-    stretch_derivatives(xs, c.cache.tri[t], c.control.stretch_compliance.row(m.tri_group[t]).transpose(), &g,
+    stretch_derivatives(xs, c.cache.tri[t], c.control.stretch_compliance.row(m.tri_group[t]).transpose(), nullptr,
                         &Ht[t]);
     if (psd) Ht[t] = project_psd<3>(Ht[t]);
   }

@@ -64,7 +64,7 @@ inline StretchRest stretch_rest(const Vec2& u0, const Vec2& u1, const Vec2& u2) 
 ///   ∂²U/∂f0² = κ0 (f0 f0ᵀ + ε00 I) + ¼κ2 f1 f1ᵀ,  ∂²U/∂f1² = κ1 (f1 f1ᵀ + ε11 I) + ¼κ2 f0 f0ᵀ,
 ///   ∂²U/∂f0∂f1 = ¼κ2 f1 f0ᵀ + ½κ2 ε01 I;
 /// ∇_k U = Σ_j c_j[k] ∂U/∂f_j and ∇²_{kl} U = Σ_{ij} c_i[k] c_j[l] ∂²U/∂f_i∂f_j (J/m, J/m²).
-/// H may be null (gradient only). alpha = (α_warp, α_weft, α_shear) in m/N.
+/// g or H may be null (not wanted). alpha = (α_warp, α_weft, α_shear) in m/N.
 inline void stretch_derivatives(const Vec3 x[3], const StretchRest& r, const Vec3& alpha,
                                 Eigen::Matrix<double, 9, 1>* g, Eigen::Matrix<double, 9, 9>* H) {
   const Eigen::Matrix2d& B = r.B;
@@ -73,8 +73,10 @@ inline void stretch_derivatives(const Vec3 x[3], const StretchRest& r, const Vec
   const double e0 = 0.5 * (f0.squaredNorm() - 1.0), e1 = 0.5 * (f1.squaredNorm() - 1.0), e2 = 0.5 * f0.dot(f1);
   const double k0 = r.area / alpha[0], k1 = r.area / alpha[1], k2 = r.area / alpha[2];
   const double c[2][3] = {{-(B(0, 0) + B(1, 0)), B(0, 0), B(1, 0)}, {-(B(0, 1) + B(1, 1)), B(0, 1), B(1, 1)}};
-  const Vec3 P0 = k0 * e0 * f0 + 0.5 * k2 * e2 * f1, P1 = k1 * e1 * f1 + 0.5 * k2 * e2 * f0;
-  for (int k = 0; k < 3; ++k) g->segment<3>(3 * k) = c[0][k] * P0 + c[1][k] * P1;
+  if (g) {
+    const Vec3 P0 = k0 * e0 * f0 + 0.5 * k2 * e2 * f1, P1 = k1 * e1 * f1 + 0.5 * k2 * e2 * f0;
+    for (int k = 0; k < 3; ++k) g->segment<3>(3 * k) = c[0][k] * P0 + c[1][k] * P1;
+  }
   if (!H) return;
   const Eigen::Matrix3d I = Eigen::Matrix3d::Identity();
   Eigen::Matrix3d Hf[2][2];
