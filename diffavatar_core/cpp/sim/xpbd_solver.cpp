@@ -327,6 +327,7 @@ int XpbdSolver::refine(ClothState& s, const SimParams& p, const DrapeParams& d, 
   for (int v : dof) n = std::max(n, v + 3);
   int it = 0;
   double res = INFINITY;
+  bool res_stale = true;  // res not yet evaluated at the current s.x
   // Levenberg–Marquardt damping λ·M (λ in 1/s², M the lumped masses): 0 unless a step fails.
   double reg = 0.0;
   // The Hessian's pattern is the mesh's (contacts and anchors add to its diagonal blocks): the
@@ -354,6 +355,7 @@ int XpbdSolver::refine(ClothState& s, const SimParams& p, const DrapeParams& d, 
     EnergyContext ctx = energy_context(p.gravity);
     RowMatX3d G = energy_gradient(ctx, s.x);
     res = force_residual(G, p.gravity);
+    res_stale = false;
     rc.report({"refine", it, d.refine_iterations, res});
     if (res <= d.residual_tol || n == 0) break;
     VecXd g(n);
@@ -410,9 +412,10 @@ int XpbdSolver::refine(ClothState& s, const SimParams& p, const DrapeParams& d, 
       continue;
     }
     s.x = xt;
+    res_stale = true;
     reg = reg * 0.1 < 1e-6 ? 0.0 : reg * 0.1;
   }
-  res = residual(s.x, p.gravity);
+  if (res_stale) res = residual(s.x, p.gravity);  // only when the last iteration moved x
   if (res_out) *res_out = res;
   s.v.setZero();
   return it;
