@@ -54,11 +54,6 @@ bool hinge_angle(const ClothModel& m, const RowMatX3d& x, int h, double xs[12], 
   return true;
 }
 
-// Contact: its plane (contact_kernel.hpp) on the control's body; C = n̂·(p − q) − h is linear in p.
-ContactFrame frame_of(const EnergyContext& c, const Contact& ct) {
-  return contact_frame(c.model.smooth_contact, ct, c.control.body_vertices, c.cache.body_normals, c.model.body_faces);
-}
-
 // W = V ⊗ I₃ (3NV × 3(NV−1)) with V the Helmert basis of the vectors of R^NV orthogonal to
 // (1, …, 1): orthonormal columns spanning everything but the element's rigid translations.
 template <int NV>
@@ -120,8 +115,8 @@ double total_energy(const EnergyContext& c, const RowMatX3d& x) {
   }
   for (int s = 0; s < m.seams.rows(); ++s)
     E += (x.row(m.seams(s, 0)) - x.row(m.seams(s, 1))).squaredNorm() * 0.5 / m.seam_compliance;
-  for (const Contact& ct : c.contacts) {
-    double C = contact_gap(x.row(ct.vertex).transpose(), frame_of(c, ct), m.thickness);
+  for (std::size_t j = 0; j < c.contacts.size(); ++j) {
+    double C = contact_gap(x.row(c.contacts[j].vertex).transpose(), c.frames[j], m.thickness);
     if (C < 0.0) E += 0.5 * m.contact_stiffness * C * C;
   }
   for (int i = 0; i < x.rows(); ++i) E -= m.mass[i] * c.gravity.dot(x.row(i).transpose());
@@ -167,10 +162,11 @@ RowMatX3d energy_gradient(const EnergyContext& c, const RowMatX3d& x) {
     G.row(m.seams(s, 0)) += d;
     G.row(m.seams(s, 1)) -= d;
   }
-  for (const Contact& ct : c.contacts) {
-    ContactFrame f = frame_of(c, ct);
-    double C = contact_gap(x.row(ct.vertex).transpose(), f, m.thickness);
-    if (C < 0.0) G.row(ct.vertex) += m.contact_stiffness * C * f.n.transpose();
+  for (std::size_t j = 0; j < c.contacts.size(); ++j) {
+    const int i = c.contacts[j].vertex;
+    const ContactFrame& f = c.frames[j];
+    double C = contact_gap(x.row(i).transpose(), f, m.thickness);
+    if (C < 0.0) G.row(i) += m.contact_stiffness * C * f.n.transpose();
   }
   return G;
 }
@@ -223,11 +219,11 @@ Eigen::SparseMatrix<double> energy_hessian(const EnergyContext& c, const RowMatX
       Eigen::Matrix3d::Identity();
   Hs /= m.seam_compliance;
   for (int s = 0; s < m.seams.rows(); ++s) scatter(Hs, &m.seams(s, 0), 2);
-  for (const Contact& ct : c.contacts) {
-    ContactFrame f = frame_of(c, ct);
-    if (contact_gap(x.row(ct.vertex).transpose(), f, m.thickness) >= 0.0) continue;
+  for (std::size_t j = 0; j < c.contacts.size(); ++j) {
+    const ContactFrame& f = c.frames[j];
+    if (contact_gap(x.row(c.contacts[j].vertex).transpose(), f, m.thickness) >= 0.0) continue;
     Eigen::Matrix3d H = m.contact_stiffness * f.n * f.n.transpose();  // C is linear in p: ∇ₚ²U = k_c n̂ n̂ᵀ
-    scatter(H, &ct.vertex, 1);
+    scatter(H, &c.contacts[j].vertex, 1);
   }
   if (c.anchor && c.anchor_stiffness > 0)
     for (int i = 0; i < m.num_vertices; ++i)
@@ -307,13 +303,14 @@ ControlGradient mixed_product(const EnergyContext& c, const RowMatX3d& x, const 
     }
   }
   RowMatX3d gN;  // gradient w.r.t. the body's vertex normals, carried to its vertices at the end
-  for (const Contact& ct : c.contacts) {
+  for (std::size_t j = 0; j < c.contacts.size(); ++j) {
+    const Contact& ct = c.contacts[j];
     Vec3 b[3], N[3];
     for (int k = 0; k < 3; ++k) {
       b[k] = c.control.body_vertices.row(m.body_faces(ct.tri, k)).transpose();
       N[k] = c.cache.body_normals.row(m.body_faces(ct.tri, k)).transpose();
     }
-    const ContactFrame f = contact_frame(m.smooth_contact, b, N, ct.w);
+    const ContactFrame& f = c.frames[j];
     const Vec3 p = x.row(ct.vertex).transpose();
     const double C = contact_gap(p, f, m.thickness);
     if (C >= 0.0) continue;

@@ -24,6 +24,7 @@ struct EnergyContext {
   const ClothControl& control;
   const RestCache& cache;
   const std::vector<Contact>& contacts;
+  const std::vector<ContactFrame>& frames;  // the contacts' planes on the control's body, same order
   Vec3 gravity;  // m/s²
   // Static-friction proxy of the quasi-static refinement: E += ½ κ Σ m_i |x_i − a_i|² with
   // anchors a (the settled XPBD positions) and κ in 1/s²; κ = 0 or a == nullptr disables it.

@@ -287,7 +287,7 @@ std::vector<int> XpbdSolver::free_dofs() const {
 }
 
 EnergyContext XpbdSolver::energy_context(const Vec3& gravity) const {
-  EnergyContext ctx{model_, control_, cache_, contacts_, gravity};
+  EnergyContext ctx{model_, control_, cache_, contacts_, frames_, gravity};
   if (anchor_.rows() == model_.num_vertices && anchor_k_ > 0) {
     ctx.anchor = &anchor_;
     ctx.anchor_stiffness = anchor_k_;
