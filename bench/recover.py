@@ -7,6 +7,8 @@ random shape → sew + drape → scan-like mesh (subdivided, 2 mm noise, holes, 
 fragments, cm). Recovery starts from the unperturbed template and the default material.
 Variants: full; no_cage (every pattern vertex optimized); no_seam (α = 0); no_curvature (β = 0);
 euclidean (L-BFGS without the H¹ metric on the pattern, sobolev_length 0: a reference run);
+no_cage_euclidean (every pattern vertex optimized with the plain L-BFGS metric: the paper's "w/o control
+cage", whose vertices have no smoothing of their own; no_cage keeps the H¹ metric, which smooths them);
 unguided (no scan-guided drapes, guided_stiffness 0: a reference run); no_measurement_fit (the
 handles start on the template's outline, measurement_fit_iterations 0: a reference run);
 fixed_masses (the template's masses throughout); stretch (the stretch compliances optimized too,
@@ -37,10 +39,11 @@ from diffavatar_core.pipeline.options import StepSizes, Weights
 from diffavatar_core.pipeline.synthetic import make_case, truth_material
 
 VARIANTS = ("full", "no_cage", "no_seam", "no_curvature")
-# not ablations of the paper: the reference runs of the L-BFGS metric before the H¹ one, of the recovery without
+# not ablations of the paper (but no_cage_euclidean, its "w/o control cage" without our H¹ metric): the reference
+# runs of the L-BFGS metric before the H¹ one, of the recovery without
 # scan-guided drapes, without the template measurement fit, with the template's masses throughout, with the stretch
 # compliances optimized, and with a 10× larger L-BFGS unit for the bending (1 decade)
-EXTRA_VARIANTS = ("euclidean", "unguided", "no_measurement_fit", "fixed_masses", "stretch", "bending_step_1")
+EXTRA_VARIANTS = ("euclidean", "no_cage_euclidean", "unguided", "no_measurement_fit", "fixed_masses", "stretch", "bending_step_1")
 
 
 def corner_edge_lengths(g, corners_from=None) -> list:
@@ -92,6 +95,8 @@ def options_for(variant, iterations, output_edge=0.0, friction=None, contact_nor
         return o.with_(weights=Weights(**{**o.weights.__dict__, "curvature": 0.0}))
     if variant == "euclidean":
         return o.with_(sobolev_length=0.0)
+    if variant == "no_cage_euclidean":
+        return o.with_(parametrization="vertices", sobolev_length=0.0)
     if variant == "unguided":
         return o.with_(guided_stiffness=0.0)
     if variant == "no_measurement_fit":
