@@ -9,6 +9,8 @@ Variants: full; no_cage (every pattern vertex optimized); no_seam (α = 0); no_c
 euclidean (L-BFGS without the H¹ metric on the pattern, sobolev_length 0: a reference run);
 no_cage_euclidean (every pattern vertex optimized with the plain L-BFGS metric: the paper's "w/o control
 cage", whose vertices have no smoothing of their own; no_cage keeps the H¹ metric, which smooths them);
+paper_cage and paper_no_cage (the cage, or every vertex, optimized as the paper does: plain L-BFGS metric and
+no measurement fit — the fit moves the outline through the cage, in no_cage too);
 unguided (no scan-guided drapes, guided_stiffness 0: a reference run); no_measurement_fit (the
 handles start on the template's outline, measurement_fit_iterations 0: a reference run);
 fixed_masses (the template's masses throughout); stretch (the stretch compliances optimized too,
@@ -39,11 +41,12 @@ from diffavatar_core.pipeline.options import StepSizes, Weights
 from diffavatar_core.pipeline.synthetic import make_case, truth_material
 
 VARIANTS = ("full", "no_cage", "no_seam", "no_curvature")
-# not ablations of the paper (but no_cage_euclidean, its "w/o control cage" without our H¹ metric): the reference
+# not ablations of the paper (but no_cage_euclidean and the paper_* pair: its "w/o control cage" without our H¹
+# metric, and without our measurement fit too): the reference
 # runs of the L-BFGS metric before the H¹ one, of the recovery without
 # scan-guided drapes, without the template measurement fit, with the template's masses throughout, with the stretch
 # compliances optimized, and with a 10× larger L-BFGS unit for the bending (1 decade)
-EXTRA_VARIANTS = ("euclidean", "no_cage_euclidean", "unguided", "no_measurement_fit", "fixed_masses", "stretch", "bending_step_1")
+EXTRA_VARIANTS = ("euclidean", "no_cage_euclidean", "paper_cage", "paper_no_cage", "unguided", "no_measurement_fit", "fixed_masses", "stretch", "bending_step_1")
 
 
 def corner_edge_lengths(g, corners_from=None) -> list:
@@ -97,6 +100,9 @@ def options_for(variant, iterations, output_edge=0.0, friction=None, contact_nor
         return o.with_(sobolev_length=0.0)
     if variant == "no_cage_euclidean":
         return o.with_(parametrization="vertices", sobolev_length=0.0)
+    if variant in ("paper_cage", "paper_no_cage"):
+        return o.with_(parametrization="vertices" if variant == "paper_no_cage" else "cage", sobolev_length=0.0,
+                       measurement_fit_iterations=0)
     if variant == "unguided":
         return o.with_(guided_stiffness=0.0)
     if variant == "no_measurement_fit":
