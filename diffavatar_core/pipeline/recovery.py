@@ -169,8 +169,9 @@ def _fine_output(g, cage, co, fine: Garment, material, body_vertices, body_faces
     co-optimization's result: the pattern carried through the cage, warm-started from the coarse
     drape (pushed out of the body), then an XPBD drape (single-precision sweeps, substeps) until
     it stands still (Cloth.settle: no vertex moves more than output_settle_tol in 0.5 s). Not
-    Newton: at ~10k vertices its iterations cost ~2 s and stall on the buckled cloth (200 of them
-    did not converge from this start), and nothing is differentiated here. output_drape_sweeps
+    Newton: at ~10k vertices its iterations cost ~1 s and crawl on the buckled cloth (200 of them
+    do not converge from this start or from the settled state; docs/simulation.md, "Settled
+    drapes"), and nothing is differentiated here. output_drape_sweeps
     (400) per step, not `diffavatar drape`'s 100: Gauss–Seidel sweeps converge slower the finer
     the mesh, and an unconverged cloth is a softer one. On a ~9k-vertex t-shirt 100 sweeps left
     0.4% mean edge strain where the Newton equilibrium of the coarse mesh has 0.07%; the cloth
