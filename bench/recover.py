@@ -23,7 +23,7 @@ With --output-edge the result is carried to a finer output mesh; --truth-edge se
 truth on a mesh that fine too (a 1 cm cloth does not fold as a 4 cm one: the truth of a 10k output).
 
 Run: `.venv/bin/python bench/recover.py [--cases N] [--iterations N] [--variants full,no_cage]
-[--output-edge 0.008] [--truth-edge 0.01] [--first-case K]`.
+[--output-edge 0.008] [--truth-edge 0.01] [--first-case K] [--paper-optimizer]`.
 """
 import argparse
 import json
