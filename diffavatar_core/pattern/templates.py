@@ -178,7 +178,9 @@ def _solve_cap_height(Wb: float, target: float, tol: float = 1e-12) -> float:
     """Cap height (m) whose half-cap curve (as drawn in _top_spec) has the armhole's length
     (target, m): the root of a length increasing with the height, bracketed in [0.01, 1] m and
     found to tol (m) by the Illinois variant of false position — about ten curve lengths where
-    bisection needed sixty (the measurement fit re-draws the pattern hundreds of times)."""
+    bisection needed sixty (the measurement fit re-draws the pattern hundreds of times).
+    Not scipy's brentq: its heights differ by up to 2e-13 m, and that round-off alone sends the
+    template t-shirt's drape into other folds (test_settle, test_fitting's draped t-shirt)."""
     def excess(h):
         p = PanelSpec("c", np.array([[Wb / 2, 0], [0, h], [-Wb / 2, 0]]), None,
                       curves={0: [[Wb / 4 + 0.02, 0.75 * h]]})
