@@ -2,7 +2,7 @@
 tolerance over a window of simulated time) — the fine output mesh's drape in the recovery
 pipeline. What it promises is checked after the fact: the settled cloth keeps still when the
 simulation goes on, lies outside the body, and sits next to a true equilibrium (Newton from it
-converges without moving it far)."""
+converges, releasing little energy and leaving the bulk of the cloth where it was)."""
 import numpy as np
 import pytest
 
@@ -33,17 +33,27 @@ def test_a_settled_tshirt_stands_still_outside_the_body(settled):
 
 def test_a_settled_tshirt_sits_next_to_an_equilibrium(settled):
     """Newton from the settled state (double precision, contacts re-detected) reaches the force
-    residual of the pipeline's equilibria and moves no vertex by more than a few millimetres:
-    the settled state is that equilibrium up to XPBD's unconverged stiff constraints."""
+    residual of the pipeline's equilibria, and that equilibrium is the settled state's up to
+    XPBD's unconverged stiff constraints: the energy it releases is less than lowering the whole
+    cloth by 1 cm would, and the bulk of the cloth stays (mean move < 1.5 mm, 95% of the vertices
+    < 3 mm). Measured over this drape and 24 others whose patterns differ by 1e-13 m of noise
+    (round-off; stop 33): released energy = lowering by 3.0-4.4 mm, mean move 0.53-1.05 mm, 95th
+    percentile 1.04-2.04 mm. A single vertex is not bounded: the largest move was 2.6-4.8 mm, and
+    15.5 mm on one drape whose buckled fold slid along a soft mode."""
     cloth, s = settled
     x0 = np.array(cloth.x)
+    e0 = cloth.energy()
     k, res = cloth.refine(keep_anchor=False, residual_tol=1e-7, refine_iterations=200)
     x1 = np.array(cloth.x)
+    e1 = cloth.energy()
     cloth.reset(x0)
     assert res <= 1e-7, (k, res)
+    weight = float(np.sum(cloth.model.mass)) * 9.81                    # N
     d = np.linalg.norm(x1 - x0, axis=1)
-    print("settled → equilibrium: max", d.max(), "mean", d.mean(), "Newton its", k, "residual before", s.residual)
-    assert d.max() < 5e-3 and d.mean() < 1e-3
+    print("settled → equilibrium: energy released", e0 - e1, "J = lowering by", (e0 - e1) / weight, "m; moves: max",
+          d.max(), "mean", d.mean(), "95%", np.percentile(d, 95), "Newton its", k)
+    assert 0.0 <= e0 - e1 < weight * 0.01
+    assert d.mean() < 1.5e-3 and np.percentile(d, 95) < 3e-3
 
 
 def test_a_budget_shorter_than_the_window_is_not_settled():
