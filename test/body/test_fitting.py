@@ -184,16 +184,24 @@ def test_contact_points(model):
 def test_draped_tshirt_fits_by_its_contacts(model):
     """A t-shirt draped by the simulator hangs loose below the chest; attracting all of it grew
     this body (seed 1) 10.8 cm too tall with the shape at its ±3.5 bound. Fitted by its top band,
-    then by the points that touch the body, the stature is within 3 cm and the hips within 2.5."""
+    then by the points that touch the body: the body is inside, the hips within 2.5 cm and the
+    shoulders within 2 cm, the shape within 3 prior standard deviations and the stature within
+    4 cm. Which folds the truth's drape settles into is round-off (a chaotic drape), and the fit
+    follows them: over this drape and 24 whose patterns differ by 1e-13 m of noise (stop 33) the
+    stature error was 0.09-3.46 cm (3.2-3.5 on 22), hips 0.68-1.18 cm, shoulders 1.18-1.49 cm,
+    |ν| ≤ 1.89. A t-shirt hides the legs: the prior mean body is 2.86 cm off this stature
+    (docs/body.md: draped t-shirts, 10 of 12 within 3 cm)."""
     from diffavatar_core.pipeline.synthetic import make_case
     c = make_case("tshirt", seed=1, model=model)
     V, F = c.garment_scan()
     res = fit_body(V, F, model=model, units=c.units, up=c.up, garment_type="tshirt")
     p, t = res.params, c.body_params
     assert inside_fraction(model, p, c.garment_x) <= 0.01
-    assert abs(stature(model, p) - stature(model, t)) <= 0.03
+    assert abs(stature(model, p) - stature(model, t)) <= 0.04
     hips = [model.joint_index(n) for n in ("pelvis", "hip_left", "hip_right")]
     assert np.linalg.norm(model.joints(p)[hips] - model.joints(t)[hips], axis=1).max() <= 0.025
+    shoulders = [model.joint_index(n) for n in ("clavicle_left", "clavicle_right", "shoulder_left", "shoulder_right")]
+    assert np.linalg.norm(model.joints(p)[shoulders] - model.joints(t)[shoulders], axis=1).max() <= 0.02
     assert np.abs(p.shape).max() < 3.0                 # within 3 prior standard deviations
 
 
