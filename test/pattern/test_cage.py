@@ -59,6 +59,26 @@ def test_mvc_partition_of_unity_reproduction_and_linear_precision(cage):
     assert np.allclose(W[k:], np.eye(len(cage)))
 
 
+def test_mvc_of_points_just_off_an_edge_are_the_edge_interpolation():
+    """A pattern's boundary vertex between two handles lies on the cage edge up to round-off. At
+    1e-14 ... 1e-6 m off the edge (either side; the on-edge tolerance is 1e-12 of the cage's
+    size) the coordinates stay finite, reproduce the point and tend to the edge's linear
+    interpolation. tan(α/2) = sin α / (1 + cos α) was 0/0 there (a 1e-13 m perturbation of the
+    polo's pattern gave a NaN row)."""
+    cage = np.array([[0.0, 0.0], [0.3, 0.0], [0.3, 0.5], [0.0, 0.5]])   # m
+    s = 0.37
+    on = (1 - s) * cage[1] + s * cage[2]                                 # on the edge 1 → 2
+    offs = np.array([1e-14, 1.5e-14, 3e-13, 1e-10, 1e-8, 1e-6])
+    pts = np.vstack([on + np.outer(offs, [1.0, 0.0]), on - np.outer(offs, [1.0, 0.0])])
+    W = mean_value_coordinates(cage, pts)
+    assert np.isfinite(W).all()
+    assert np.allclose(W.sum(1), 1.0, atol=1e-12)
+    assert np.max(np.abs(W @ cage - pts)) <= 1e-12
+    edge = np.array([0.0, 1 - s, s, 0.0])
+    dev = np.abs(W - edge).max(axis=1)
+    assert (dev <= 1e3 * np.concatenate([offs, offs]) + 1e-12).all(), dev   # O(distance) m⁻¹
+
+
 def test_garment_cage_reproduces_the_pattern_and_maps_gradients():
     V = np.array([[0, 0], [0.3, 0], [0.3, 0.25], [0, 0.25]], float)
     front = PanelSpec("front", V, Placement([0, 0, 0.1], [1, 0, 0], [0, 1, 0]), curves={2: [[0.15, 0.2]]})

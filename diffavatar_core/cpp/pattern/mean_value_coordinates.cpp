@@ -88,9 +88,8 @@ RowMatXd mean_value_coordinates(const RefX2d& cage, const RefX2d& points) {
     bool on_edge = false;
     for (int i = 0; i < H && !on_edge; ++i) {
       const int j = (i + 1) % H;
-      const double A = cross2(d[i], d[j]);
-      const double D = d[i].dot(d[j]);
-      const double den = r[i] * r[j] + D;
+      const double A = cross2(d[i], d[j]);  // r_i r_j sin α_i
+      const double D = d[i].dot(d[j]);      // r_i r_j cos α_i
       if (std::abs(A) <= eps * (r[i] + r[j]) && D < 0) {  // x on the edge's interior
         const double s = r[i] / (r[i] + r[j]);
         W(p, i) = 1.0 - s;
@@ -98,7 +97,9 @@ RowMatXd mean_value_coordinates(const RefX2d& cage, const RefX2d& points) {
         on_edge = true;
         break;
       }
-      t[i] = A / den;
+      // tan(α/2) = sin α / (1 + cos α) = (1 − cos α) / sin α: the first cancels as α → π
+      // (x just off an edge: 1e-13 m off gave 0/0 → NaN), the second as α → 0.
+      t[i] = D >= 0 ? A / (r[i] * r[j] + D) : (r[i] * r[j] - D) / A;
     }
     if (on_edge) continue;
     double sum = 0.0;
