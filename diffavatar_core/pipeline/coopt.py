@@ -218,6 +218,15 @@ class CoOptObjective:
         self.x_last = x
         return float(value), grads, terms
 
+    def restore(self, params) -> None:
+        """Puts the cloth at `params`' controls and at the warm start — that iterate's drape when
+        `params` is the optimizer's current iterate. An optimizer's last evaluation can be a
+        trial it did not take, which leaves the cloth at the trial's pattern."""
+        rest, bend, bp = self.unpack(params)
+        self.cloth.set_control(rest=rest, bend_stiffness=bend, body_vertices=self.model.pose(bp) if self.use_body else None,
+                               stretch_compliance=self.stretch(params))
+        self.cloth.reset(self.x_warm)
+
     def fresh_drape_at(self, rest, bend, body_vertices, stretch=None):
         """Equilibrium at these controls from the template's own 3D layout — sewn and draped as
         the initial drape is, not warm-started. Raises ValueError when it does not converge."""

@@ -121,7 +121,7 @@ def fit_measurements(obj, mmap: MeasurementMap, params: dict, iterations: int, s
     """Minimizes φ(ζ(m)) over the measurements m with L-BFGS (step: m per unit move), the other
     parameter groups of `params` (a CoOptObjective parameter dict) held. obj: the
     CoOptObjective, whose cloth is at the template's drape; accepted iterates become its warm
-    starts (commit), as in the co-optimization. Raises ValueError when φ cannot be evaluated at
+    starts (commit), as in the co-optimization, and the cloth ends at the fitted pattern's drape. Raises ValueError when φ cannot be evaluated at
     the template's measurements."""
     held = {g: v for g, v in params.items() if g != "handles"}
 
@@ -133,6 +133,8 @@ def fit_measurements(obj, mmap: MeasurementMap, params: dict, iterations: int, s
                          cancelled=cancelled, on_accept=obj.commit, reevaluate=obj.opts.reevaluations,
                          reevaluate_tol=obj.opts.reevaluate_tol, on_revert=obj.revert)
     values = np.asarray(res.params["measurements"], float)   # the last accepted iterate: the warm start's
+    if res.stopped != "cancelled":   # the cloth at the result, not at a last trial L-BFGS did not take
+        obj.restore({"handles": mmap.parameters(mmap.handles(values), obj.cage is None), **held})
     return MeasurementFitResult(mmap.names, mmap.values0.copy(), values, mmap.handles(values),
                                 float(res.history[0]["value"]), float(res.value), res.iterations, res.stopped,
                                 res.history)
