@@ -25,7 +25,17 @@ TEST_TIMEOUT_S = float(os.environ.get("DIFFAVATAR_TEST_TIMEOUT_S", "900"))
 _REAL_STDERR = None
 
 
+def pytest_addoption(parser):
+    parser.addoption("--roundoff-seed", type=int, default=None, metavar="N",
+                     help="perturb every built-in template's pattern by 1e-13 m of seeded noise "
+                          "(test/roundoff.py): do the tests hold in the fold states round-off gives?")
+
+
 def pytest_configure(config):
+    seed = config.getoption("--roundoff-seed")
+    if seed is not None:
+        import roundoff
+        roundoff.install(seed)
     # a copy of the terminal's stderr, taken while pytest's capture is suspended: during a
     # test, fd 2 is pytest's capture file, which a process exiting from the timer never shows
     global _REAL_STDERR

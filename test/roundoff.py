@@ -1,0 +1,35 @@
+"""`pytest --roundoff-seed N`: every built-in template's rest shape (m) gets N(0, (1e-13 m)²)
+noise before anything uses it — a stand-in for another CPU's or compiler's round-off. The noise
+is a deterministic function of N and the rest shape itself, as round-off is: the same template
+gives the same pattern every time within a run.
+
+Cloth drapes are chaotic: which folds a buckled drape settles into can change with the last
+bits of the pattern. A test that asserts a property of "the" drape must hold over the fold
+states round-off can give, and `make test` runs on whatever CPU CI has. Run the suite with a
+few seeds before trusting a bound that sits close to one measurement. Stop 33 found this way two
+tests that held in one fold state only (the settled t-shirt, the draped t-shirt's body fit), NaN
+mean value coordinates of a vertex 1e-13 m off its cage edge, and a measurement fit that left the
+cloth at a rejected trial."""
+import hashlib
+
+import numpy as np
+
+SCALE = 1e-13   # m
+
+
+def install(seed: int) -> None:
+    """Wraps diffavatar_core.pattern.templates.make_template; call before any module imports
+    it by name (pytest_configure runs before collection)."""
+    import diffavatar_core.pattern.templates as templates
+    original = templates.make_template
+
+    def make_template(*args, **kwargs):
+        t = original(*args, **kwargs)
+        digest = hashlib.sha256(np.ascontiguousarray(t.rest).tobytes()).digest()
+        rng = np.random.default_rng([seed, int.from_bytes(digest[:8], "little")])
+        t.rest[...] = t.rest + rng.normal(scale=SCALE, size=t.rest.shape)
+        return t
+
+    make_template.__wrapped__ = original
+    make_template.__doc__ = original.__doc__
+    templates.make_template = make_template
