@@ -121,8 +121,8 @@ def fit_measurements(obj, mmap: MeasurementMap, params: dict, iterations: int, s
     """Minimizes φ(ζ(m)) over the measurements m with L-BFGS (step: m per unit move), the other
     parameter groups of `params` (a CoOptObjective parameter dict) held. obj: the
     CoOptObjective, whose cloth is at the template's drape; accepted iterates become its warm
-    starts (commit), as in the co-optimization, and the cloth ends at the fitted pattern's drape. Raises ValueError when φ cannot be evaluated at
-    the template's measurements."""
+    starts (commit), as in the co-optimization, and the cloth ends at the fitted pattern and its
+    drape. Raises ValueError when φ cannot be evaluated at the template's measurements."""
     held = {g: v for g, v in params.items() if g != "handles"}
 
     def evaluate(p):
