@@ -23,13 +23,17 @@ With --output-edge the result is carried to a finer output mesh; --truth-edge se
 truth on a mesh that fine too (a 1 cm cloth does not fold as a 4 cm one: the truth of a 10k output).
 
 Run: `.venv/bin/python bench/recover.py [--cases N] [--iterations N] [--variants full,no_cage]
-[--output-edge 0.008] [--truth-edge 0.01] [--first-case K] [--paper-optimizer]`.
+[--output-edge 0.008] [--truth-edge 0.01] [--first-case K] [--paper-optimizer] [--roundoff-seed N]`.
+--roundoff-seed N perturbs every template pattern by 1e-13 m of seeded noise: runs with a few seeds
+give the spread another CPU's round-off could give (the drapes are chaotic).
 """
 import argparse
 import json
 import math
 import os
+import pathlib
 import platform
+import sys
 import time
 
 import numpy as np
@@ -169,7 +173,14 @@ def main():
     ap.add_argument("--paper-optimizer", action="store_true",
                     help="every variant with the paper's optimizer: plain L-BFGS metric (sobolev_length 0) and no "
                          "measurement fit (Table 2 as the paper ran it)")
+    ap.add_argument("--roundoff-seed", type=int, default=None,
+                    help="every template pattern (truths' and recoveries') perturbed by 1e-13 m of seeded noise "
+                         "(test/roundoff.py): the run another CPU's round-off could give — the benchmark's noise")
     args = ap.parse_args()
+    if args.roundoff_seed is not None:
+        sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "test"))
+        import roundoff
+        roundoff.install(args.roundoff_seed)
     templates = args.templates.split(",")
     variants = args.variants.split(",")
     scales = [float(v) for v in args.compliance_scales.split(",")]
@@ -178,7 +189,8 @@ def main():
            "truth_edge_m": args.truth_edge or None,
            "friction": RecoverOptions.from_config().output_friction if args.friction is None else args.friction,
            "contact_normals": args.contact_normals or RecoverOptions.from_config().contact_normals,
-           "optimizer": RecoverOptions.from_config().optimizer, "paper_optimizer": args.paper_optimizer, "cases": []}
+           "optimizer": RecoverOptions.from_config().optimizer, "paper_optimizer": args.paper_optimizer,
+           "roundoff_seed": args.roundoff_seed, "cases": []}
     per_variant = {v: [] for v in variants}
     failed = {v: 0 for v in variants}   # cases whose recovery raised RecoveryError (not in the means)
     for k in range(args.first_case, args.cases):

@@ -18,8 +18,10 @@ SCALE = 1e-13   # m
 
 
 def install(seed: int) -> None:
-    """Wraps diffavatar_core.pattern.templates.make_template; call before any module imports
-    it by name (pytest_configure runs before collection)."""
+    """Wraps diffavatar_core.pattern.templates.make_template, also where a loaded module has
+    imported it by name (pytest_configure runs before collection, a benchmark after its imports)."""
+    import sys
+
     import diffavatar_core.pattern.templates as templates
     original = templates.make_template
 
@@ -32,4 +34,6 @@ def install(seed: int) -> None:
 
     make_template.__wrapped__ = original
     make_template.__doc__ = original.__doc__
-    templates.make_template = make_template
+    for module in list(sys.modules.values()):
+        if getattr(module, "make_template", None) is original:
+            module.make_template = make_template
