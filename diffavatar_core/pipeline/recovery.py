@@ -358,6 +358,7 @@ def _recover(scan, opts: RecoverOptions, ctl: "_Control", body_model, t0: float)
                             "optimizer's (anchored) drape is returned")
         else:
             x_out = x_assets
+            output_drape["self_anchor_move_m"] = move   # the last re-anchoring round's largest move
             if move > SELF_ANCHOR_TOL:
                 warnings.append(f"the recovered drape still moved {1e3 * move:.2f} mm in its last re-anchoring "
                                 f"(Cloth.self_anchor, friction {opts.output_friction}): reloaded, the assets may "

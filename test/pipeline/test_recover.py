@@ -45,14 +45,28 @@ def test_objective_gradient_matches_central_differences(problem, request):
     assert all(np.isfinite(v) for v in terms.values()) and terms["body_data"] > 0
     checks = [("handles", k) for k in rng.choice(len(theta["handles"]), 4, replace=False)]
     checks += [("log_bend", 0), ("shape", 0), ("shape", 1), ("pose", 5), ("pose", int(np.argmax(np.abs(grads["pose"]))))]
-    for group, k in checks:
-        # small body steps: the body term's closest points switch faces within larger ones
-        h = {"handles": 1e-6, "log_bend": 1e-4, "shape": 1e-6, "pose": 1e-6}[group]
+    def central_difference(group, k, h):
+        """(central difference, largest vertex distance between the two drapes, m)."""
         tp = {kk: np.array(v, float) for kk, v in theta.items()}
         tm = {kk: np.array(v, float) for kk, v in theta.items()}
         tp[group][k] += h
         tm[group][k] -= h
-        fd = (phi(tp)[0] - phi(tm)[0]) / (2 * h)
+        vp = phi(tp)[0]
+        xp = obj.x_last
+        vm = phi(tm)[0]
+        return (vp - vm) / (2 * h), np.abs(xp - obj.x_last).max()
+
+    for group, k in checks:
+        # small body steps: the body term's closest points switch faces within larger ones
+        h = {"handles": 1e-6, "log_bend": 1e-4, "shape": 1e-6, "pose": 1e-6}[group]
+        fd, gap = central_difference(group, k, h)
+        if gap > 1e-4:
+            # Newton from the anchor found another equilibrium at one of the two points (the
+            # energy is not convex; under 1e-13 m of pattern round-off the skirt's pose 3 at
+            # -1e-6 rad did: φ 1e-5 lower, 5e-9 on the other side): no difference of one branch.
+            # The same derivative with a third of the step.
+            fd, gap = central_difference(group, k, h / 3)
+            assert gap <= 1e-4, (group, k, gap)
         an = grads[group][k]
         scale = max(abs(fd), 1e-3 * np.abs(grads[group]).max(), 1e-12)
         assert abs(an - fd) <= 1e-4 * scale, (group, k, an, fd)   # measured ≤ 2e-8
@@ -155,8 +169,11 @@ def test_end_to_end_recovery_moves_toward_the_ground_truth(recovered):
 
 def test_result_directory_reloads_as_its_own_equilibrium(recovered):
     """The written assets (pattern.json rest shape, material, body parameters) rebuild a cloth
-    whose recovered drape is an equilibrium of its own anchors: no vertex moves more than 0.5 mm
-    when re-solved (without the re-anchoring at the end of co_optimize: 2.6 mm)."""
+    whose recovered drape is an equilibrium of its own anchors: re-solved without them, no vertex
+    moves more than 0.5 mm (without the re-anchoring at the end of co_optimize: 2.6 mm) — or, when
+    the re-anchoring rounds did not converge and the result warns that the assets may settle by
+    about its last move (metrics.output_drape.self_anchor_move_m), twice that move. Measured: 1e-4
+    mm; under `--roundoff-seed 5` the rounds ended at 0.66 mm and the reload moved 0.66 mm."""
     from diffavatar_core.pipeline.assets import load_result
     r, out, _ = recovered
     a = load_result(out)
@@ -165,7 +182,10 @@ def test_result_directory_reloads_as_its_own_equilibrium(recovered):
     cloth = a.cloth()
     it, res = cloth.refine(keep_anchor=False, residual_tol=1e-7, refine_iterations=100)
     assert res <= 1e-6
-    assert np.abs(np.array(cloth.x) - r.garment_vertices).max() < 5e-4   # self-anchored (coopt.self_anchor)
+    move = r.metrics["output_drape"]["self_anchor_move_m"]   # m: the last re-anchoring round's
+    assert (move > 1e-4) == any("still moved" in w for w in r.warnings)
+    d = np.linalg.norm(np.array(cloth.x) - r.garment_vertices, axis=1).max()
+    assert d < max(5e-4, 2 * move), (d, move)   # self-anchored (Cloth.self_anchor)
 
 
 def test_animate_a_result_directory(recovered, tmp_path):
