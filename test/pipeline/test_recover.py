@@ -142,12 +142,16 @@ def test_end_to_end_recovery_moves_toward_the_ground_truth(recovered):
     assert m["seam_length_mismatch_max_pct"] <= 5.0
     assert m["fresh_drapes_kept"] in (0, 1)   # 6 iterations, fresh_every 5: one fresh drape tried
     assert m["guided_drapes_kept"] in (0, 1, 2)   # and a guided one then and at the end
-    # the template's measurements fitted first: each nearer the truth's (length −14%, hem +6%)
+    # the template's measurements fitted first, each nearer the truth's (length −14%, hem +6%):
+    # the error left, as a fraction of the template's, over the unperturbed run and 5 under
+    # `--roundoff-seed` (stop 33) was 0.06-0.07 for the length and 0.01-0.50 for the hem width,
+    # which the skirt's folds can take up instead
     fit = m["measurement_fit"]
     assert fit["names"] == ["length", "waist_ease", "hem_width"] and fit["loss_fitted"] < fit["loss_template"]
     for name, true in truth["measurements_m"].items():
         k = fit["names"].index(name)
-        assert abs(fit["fitted_m"][k] - true) < 0.5 * abs(fit["template_m"][k] - true), (name, fit)
+        left = {"length": 0.25, "hem_width": 0.75}[name]
+        assert abs(fit["fitted_m"][k] - true) < left * abs(fit["template_m"][k] - true), (name, fit)
     assert m["mesh_quality_min"] > 0.05
     assert [s for s in ("preprocess", "body", "drape", "optimize", "metrics") if s in stages] == \
         ["preprocess", "body", "drape", "optimize", "metrics"]
