@@ -9,6 +9,7 @@ from diffavatar_core.pattern.cage import build_cage
 from diffavatar_core.pattern.templates import make_template
 from diffavatar_core.pipeline import RecoverOptions, recover
 from diffavatar_core.pipeline.refine import transfer_pattern, transfer_positions
+from edge_strain import mean_edge_strain
 
 
 @pytest.fixture(scope="module")
@@ -46,13 +47,6 @@ def test_positions_of_an_affine_drape_are_reproduced_inside_the_coarse_mesh(skir
     want = fine.rest @ M.T + c + 0.5 * fine.panel[:, None]
     err = np.linalg.norm(x_fine - want, axis=1)
     assert np.median(err) < 1e-9 and err.max() < 0.01, err.max()
-
-
-def mean_edge_strain(x, rest, faces) -> float:
-    """Mean of |e|/|ē| − 1 over the triangles' edges: draped (x, m) against rest (pattern, m)."""
-    E = np.vstack([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
-    return float((np.linalg.norm(x[E[:, 0]] - x[E[:, 1]], axis=1)
-                  / np.linalg.norm(rest[E[:, 0]] - rest[E[:, 1]], axis=1) - 1).mean())
 
 
 def test_recover_writes_a_finer_settled_mesh():
