@@ -37,14 +37,45 @@ def _skirt_problem(contact_normals):
     return model, p, g, cloth, scan_points, scan_loops
 
 
+def _restored(problem):
+    """Yields a module-scoped problem and puts its cloth back afterwards — control (rest shape,
+    stretch compliances, bending stiffness, body vertices), positions, Newton anchors and the last
+    drape's simulation parameters — so that no test sees what an earlier one left (the objective's
+    central differences end at a perturbed pattern on a perturbed body; two later tests failed
+    from there under `--roundoff-seed 10`). The contact set is not kept: every refine that does
+    not keep it detects it afresh."""
+    cloth = problem[3]
+    c = cloth.control
+    keep = dict(rest=np.array(c.rest), stretch_compliance=np.array(c.stretch_compliance),
+                bend_stiffness=np.array(c.bend_stiffness), body_vertices=np.array(c.body_vertices))
+    x, anchor, params = np.array(cloth.x), np.array(cloth.solver.anchor), getattr(cloth, "params", None)
+    yield problem
+    cloth.set_control(**keep)
+    cloth.reset(x)
+    if len(anchor):
+        cloth.solver.set_anchor(anchor)
+    cloth.params = params
+
+
 @pytest.fixture(scope="module")
-def skirt_problem():
-    """A coarse skirt draped on the default body and a target: the same skirt 8% longer, draped
-    (its surface vertices and openings as the scan). Tests that change the cloth restore it."""
+def _skirt_problem_module():
     return _skirt_problem("face")
 
 
 @pytest.fixture(scope="module")
-def smooth_skirt_problem():
-    """skirt_problem with the smooth contact plane (sim/contact_kernel.hpp)."""
+def _smooth_skirt_problem_module():
     return _skirt_problem("smooth")
+
+
+@pytest.fixture
+def skirt_problem(_skirt_problem_module):
+    """A coarse skirt draped on the default body and a target: the same skirt 8% longer, draped
+    (its surface vertices and openings as the scan). Built once per module; each test gets the
+    cloth as built (_restored)."""
+    yield from _restored(_skirt_problem_module)
+
+
+@pytest.fixture
+def smooth_skirt_problem(_smooth_skirt_problem_module):
+    """skirt_problem with the smooth contact plane (sim/contact_kernel.hpp)."""
+    yield from _restored(_smooth_skirt_problem_module)
