@@ -464,9 +464,12 @@ def test_stretch_compliance_gradient_and_result(skirt_problem):
     for k in range(3):
         tp = {kk: np.array(v, float) for kk, v in theta.items()}
         tm = {kk: np.array(v, float) for kk, v in theta.items()}
-        tp["log_stretch"][k] += 1e-4
-        tm["log_stretch"][k] -= 1e-4
-        fd = (phi(tp)[0] - phi(tm)[0]) / 2e-4
+        # steps of 1e-5: from the state body_after's co_optimize left (before fixtures restored the
+        # cloth) a contact switched within ±1e-4 of log10 α_warp, the central difference 1.2% off
+        # at 1e-4 and 1e-9 off at 3e-5 and below
+        tp["log_stretch"][k] += 1e-5
+        tm["log_stretch"][k] -= 1e-5
+        fd = (phi(tp)[0] - phi(tm)[0]) / 2e-5
         assert abs(an[k] - fd) <= 1e-4 * max(np.abs(an).max(), 1e-12), (k, an[k], fd)
     np.testing.assert_allclose(np.array(cloth.control.stretch_compliance), 10.0 ** np.broadcast_to(
         tm["log_stretch"], c_keep.shape), rtol=1e-12)   # the last evaluation's
