@@ -10,11 +10,11 @@ few seeds before trusting a bound that sits close to one measurement. Stop 33 fo
 NaN mean value coordinates of a vertex 1e-13 m off its cage edge, a measurement fit that left the
 cloth at a rejected trial, and five tests that held in one fold state only (the settled t-shirt,
 the draped t-shirt's body fit, a softer truth hanging lower, a reloaded result, and a central
-difference whose one side Newton took to another equilibrium). Open after stop 33: under seed 10
-three tests of test/pipeline/test_recover.py fail — the reloaded result (a re-solve to residual
-1e-7 moves the self-anchored drape 0.75 mm, the pipeline's own Cloth as much: a soft mode within
-the tolerance, it seems), body_after (co_optimize stops after 1 of 2 iterations) and the stretch
-compliances' central difference (1.2% off the adjoint)."""
+difference whose one side Newton took to another equilibrium). Stop 34 fixed what seed 10 found
+in test/pipeline/test_recover.py: a fixture that carried one test's perturbed cloth into the next
+two (now restored after every test), and self-anchoring that converged at a state whose own
+contact planes were not the ones it held (a reload moved 0.75 mm; Cloth.self_anchor now re-solves
+with them)."""
 import hashlib
 
 import numpy as np

@@ -63,6 +63,10 @@ class SettleResult:
 # would drag it across the body.
 RESEAT_MAX_DEPTH = 0.05
 
+# Cloth.self_anchor: how many times a round re-solves with the contact planes its end state
+# detects (a Newton solve holds those of its start), anchors kept.
+CONTACT_REDETECTIONS = 3
+
 # The contact plane of a cloth vertex on the body (sim/contact_kernel.hpp, docs/simulation.md): its
 # closest triangle's own plane, or the tangent plane with the interpolated vertex normal.
 CONTACT_NORMALS = ("face", "smooth")
@@ -357,12 +361,16 @@ class Cloth:
         d.residual_tol = float(residual_tol)
         d.refine_iterations = int(refine_iterations)
         d.anchor_stiffness = float(anchor_stiffness)
-        p = getattr(self, "params", None) or _sim_params(1 / 120, 100, (0, -9.81, 0), 4.0, 0.01, 50.0)
+        p = self._last_params()
         if contact_radius is not None:
             if not (np.isfinite(contact_radius) and contact_radius >= 0):
                 raise ValueError(f"contact_radius: expected a distance >= 0 m, got {contact_radius}")
             p = _sim_params(p.dt, p.iterations, p.gravity, p.damping, contact_radius, p.max_speed, p.fast, p.friction)
         return self.solver.refine(self.state, p, d, keep_anchor, keep_contacts, progress, cancel)
+
+    def _last_params(self):
+        """The last drape's simulation parameters (the defaults before any drape)."""
+        return getattr(self, "params", None) or _sim_params(1 / 120, 100, (0, -9.81, 0), 4.0, 0.01, 50.0)
 
     def reseat_contacts(self, residual_tol: float, refine_iterations: int = 200, anchor_stiffness: float = 1.0,
                         rounds: int = 3, progress=None, cancel=None) -> tuple[int, float, float]:
@@ -396,8 +404,10 @@ class Cloth:
         control started there does not leave (a drape anchored elsewhere — an optimizer's warm
         start — moves by up to its distance from it). A round that misses residual_tol or ends
         in the body (deeper than 10% of the thickness) is undone and ends the rounds. Usually
-        geometric (the skirt template on the default body: 0.93 → 0.036 → 0 mm). Each round holds
-        its contacts' planes from the round's start. With contact_normals="face" the long-sleeve
+        geometric (the skirt template on the default body: 0.93 → 0.036 → 0 mm). A Newton solve
+        holds the contact planes of its start; a round re-solves (anchors kept, up to
+        CONTACT_REDETECTIONS times) while its end state detects others, so that a converged state is
+        an equilibrium with its own contacts too. With contact_normals="face" the long-sleeve
         template's drape on the default body alternates between two states 6–7 mm apart (~100
         vertices have another closest triangle in each; anchors 10 or 100× stiffer and friction do
         not end it); the smooth plane turns continuously as a vertex's closest body point moves
@@ -418,6 +428,25 @@ class Cloth:
             x0 = np.array(self.x)
             _, res = self.refine(anchor=anchor, residual_tol=residual_tol, refine_iterations=refine_iterations,
                                  cancel=cancel)
+            # the round held the contact planes of its start; where its end state has others (a
+            # closest triangle switched), re-solved with them, anchors kept — otherwise a reload,
+            # which detects them afresh, would move (0.75 mm under 1e-13 m of round-off). Planes
+            # that still switch leave the round unconverged by the largest of these moves.
+            switching = 0.0
+            for j in range(CONTACT_REDETECTIONS + 1):
+                if not res <= residual_tol:
+                    break
+                p = self._last_params()
+                self.solver.detect_contacts(self.x, p)
+                if self.solver.residual(self.x, np.asarray(p.gravity, dtype=np.float64)) <= residual_tol:
+                    switching = 0.0
+                    break
+                if j == CONTACT_REDETECTIONS:
+                    break
+                xs = np.array(self.x)
+                _, res = self.refine(keep_anchor=True, keep_contacts=True, residual_tol=residual_tol,
+                                     refine_iterations=refine_iterations, cancel=cancel)
+                switching = max(switching, float(np.linalg.norm(np.asarray(self.x) - xs, axis=1).max()))
             if not (res <= residual_tol and not self.solver.max_penetration(self.x) > 0.1 * self.model.thickness):
                 self.reset(x0)
                 break
@@ -427,7 +456,7 @@ class Cloth:
             # however little its vertex moved: anchors left behind within tol would add up their
             # offsets round after round and hold the rounds just above tol
             loose = self.contact_cone_violation(anchor, mu) if mu > 0 else np.ones(len(x), bool)
-            offset = float(d[loose].max()) if loose.any() else 0.0
+            offset = max(float(d[loose].max()) if loose.any() else 0.0, switching)
             anchor[loose] = x[loose]
             if offset <= tol:
                 break
