@@ -10,11 +10,13 @@ few seeds before trusting a bound that sits close to one measurement. Stop 33 fo
 NaN mean value coordinates of a vertex 1e-13 m off its cage edge, a measurement fit that left the
 cloth at a rejected trial, and five tests that held in one fold state only (the settled t-shirt,
 the draped t-shirt's body fit, a softer truth hanging lower, a reloaded result, and a central
-difference whose one side Newton took to another equilibrium). Stop 34 fixed what seed 10 found
-in test/pipeline/test_recover.py: a fixture that carried one test's perturbed cloth into the next
-two (now restored after every test), and self-anchoring that converged at a state whose own
-contact planes were not the ones it held (a reload moved 0.75 mm; Cloth.self_anchor now re-solves
-with them)."""
+difference whose one side Newton took to another equilibrium). Stop 34 (seeds 10–16, all passing
+after its fixes): seed 10 found a fixture that carried one test's perturbed cloth into the next two
+(now restored after every test) and self-anchoring that converged at a state whose own contact
+planes were not the ones it held (a reload moved 0.75 mm; Cloth.self_anchor now re-solves with
+them); seed 13 a t-shirt drape that needed 206 Newton iterations where the drape command allowed
+200; seed 14 a central difference whose centre Newton took to another equilibrium than its two
+sides."""
 import hashlib
 
 import numpy as np
