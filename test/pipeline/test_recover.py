@@ -17,6 +17,8 @@ from diffavatar_core.demo import SAMPLE, TRUTH
 from diffavatar_core.scan import ImplausibleSizeError, LabelError, NoGarmentError, NonFiniteError, ScanError
 from diffavatar_core.sim.material import ClothMaterial
 
+from branch_difference import BRANCH_TOL, branch_difference
+
 
 @pytest.mark.parametrize("problem", ["skirt_problem", "smooth_skirt_problem"])
 def test_objective_gradient_matches_central_differences(problem, request):
@@ -46,35 +48,20 @@ def test_objective_gradient_matches_central_differences(problem, request):
     assert all(np.isfinite(v) for v in terms.values()) and terms["body_data"] > 0
     checks = [("handles", k) for k in rng.choice(len(theta["handles"]), 4, replace=False)]
     checks += [("log_bend", 0), ("shape", 0), ("shape", 1), ("pose", 5), ("pose", int(np.argmax(np.abs(grads["pose"]))))]
-    def central_difference(group, k, h):
-        """(central difference, largest vertex distance between the two drapes m, the same from
-        the centre's drape to theirs m, the mean of the adjoint's derivatives at the two)."""
-        tp = {kk: np.array(v, float) for kk, v in theta.items()}
-        tm = {kk: np.array(v, float) for kk, v in theta.items()}
-        tp[group][k] += h
-        tm[group][k] -= h
-        vp, gp, _ = phi(tp)
-        xp = obj.x_last
-        vm, gm, _ = phi(tm)
-        off = max(np.abs(xp - x_centre).max(), np.abs(obj.x_last - x_centre).max())
-        return (vp - vm) / (2 * h), np.abs(xp - obj.x_last).max(), off, 0.5 * (gp[group][k] + gm[group][k])
+
+    def evaluate(group, k):
+        def at(step):
+            t = {kk: np.array(v, float) for kk, v in theta.items()}
+            t[group][k] += step
+            v, g, _ = phi(t)
+            return v, g[group][k], obj.x_last
+        return at
 
     for group, k in checks:
         # small body steps: the body term's closest points switch faces within larger ones
         h = {"handles": 1e-6, "log_bend": 1e-4, "shape": 1e-6, "pose": 1e-6}[group]
-        fd, gap, off, an_sides = central_difference(group, k, h)
-        if gap > 1e-4:
-            # Newton from the anchor found another equilibrium at one of the two points (the
-            # energy is not convex; under 1e-13 m of pattern round-off the skirt's pose 3 at
-            # -1e-6 rad did: φ 1e-5 lower, 5e-9 on the other side): no difference of one branch.
-            # The same derivative with a third of the step.
-            fd, gap, off, an_sides = central_difference(group, k, h / 3)
-            assert gap <= 1e-4, (group, k, gap)
-        # the derivative of the branch both sides are on: at the centre, or — when Newton took the
-        # centre to another equilibrium (under round-off seed 14 any change of the body's shape or
-        # pose, even 1e-12, moved the drape 1.3 mm from the centre's, φ 1.4e-7 higher) — the mean
-        # of the adjoint's at the two sides (O(h²) from the branch's at the centre)
-        an = grads[group][k] if off <= 1e-4 else an_sides
+        fd, an, gap = branch_difference(evaluate(group, k), h, x_centre, grads[group][k])
+        assert gap <= BRANCH_TOL, (group, k, gap)
         scale = max(abs(fd), 1e-3 * np.abs(grads[group]).max(), 1e-12)
         assert abs(an - fd) <= 1e-4 * scale, (group, k, an, fd)   # measured ≤ 2e-8
 
