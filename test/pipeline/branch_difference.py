@@ -1,8 +1,9 @@
 """A central difference of an objective whose drapes are equilibria of a non-convex energy,
 shared by the pipeline's gradient tests. Newton from a fixed warm start can land the two sides,
 or the centre, on different equilibria (under 1e-13 m of pattern round-off: the skirt's pose at
-−1e-6 rad, φ 1e-5 lower; the centre of a body-shape difference 1.3 mm from both sides; a
-measurement's side 3e-4 higher in φ). A difference across two branches is no derivative."""
+−1e-6 rad, φ 1e-5 lower; the centre of a body-shape difference 1.3 mm from both sides; a skirt
+measurement's side on a fold state 1 cm away, φ 3e-4 higher). A difference across two branches
+is no derivative."""
 import numpy as np
 
 BRANCH_TOL = 1e-4   # m: drapes closer than this are on one branch

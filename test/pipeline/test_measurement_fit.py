@@ -65,8 +65,8 @@ def test_measurement_gradient_matches_central_differences(skirt_problem):
             def at(step):
                 e = np.zeros(3)
                 e[i] = step
-                v, g, _ = phi(m + e)
-                return v, g["measurements"][i], np.array(cloth.x)
+                v, gr, _ = phi(m + e)
+                return v, gr["measurements"][i], np.array(cloth.x)
             return at
         for i in range(3):
             # 1e-6 m: at 1e-5 the waist's contact set changes within the stencil (3e-4 off)

@@ -53,8 +53,8 @@ def test_objective_gradient_matches_central_differences(problem, request):
         def at(step):
             t = {kk: np.array(v, float) for kk, v in theta.items()}
             t[group][k] += step
-            v, g, _ = phi(t)
-            return v, g[group][k], obj.x_last
+            v, gr, _ = phi(t)
+            return v, gr[group][k], obj.x_last
         return at
 
     for group, k in checks:
@@ -172,8 +172,8 @@ def test_result_directory_reloads_as_its_own_equilibrium(recovered):
     the re-anchoring rounds did not converge and the result warns that the assets may settle by
     about its last move (metrics.output_drape.self_anchor_move_m), twice that move. Measured: 4e-5
     mm; 7e-5 mm under `--roundoff-seed 10` (0.75 mm before the rounds re-solved with their end
-    state's contact planes); under seed 5 the planes alternate, the rounds end at 0.67 mm and the reload
-    moves 0.73 mm."""
+    state's contact planes); under seed 5 the planes alternate, the rounds end at 0.67 mm and the
+    reload moves 0.73 mm."""
     from diffavatar_core.pipeline.assets import load_result
     r, out, _ = recovered
     a = load_result(out)
