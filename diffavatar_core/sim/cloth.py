@@ -419,8 +419,9 @@ class Cloth:
         others are re-anchored; the rounds end when none is left. The result is then a static
         equilibrium under Coulomb friction μ: every anchor force is zero (within tol of its
         vertex) or inside its contact's friction cone. Returns the largest distance (m) of the last
-        round from a vertex to an anchor that is not inside its cone (≤ tol: converged; 0 when every
-        anchor is; inf if no round completed)."""
+        round from a vertex to an anchor that is not inside its cone, or the largest move of its
+        re-solves when its contact planes kept switching, whichever is larger (≤ tol: converged; 0
+        when every anchor is; inf if no round completed)."""
         mu = _validate.friction(friction)
         offset = float("inf")
         anchor = np.array(self.x)
