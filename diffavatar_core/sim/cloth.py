@@ -372,6 +372,14 @@ class Cloth:
         """The last drape's simulation parameters (the defaults before any drape)."""
         return getattr(self, "params", None) or _sim_params(1 / 120, 100, (0, -9.81, 0), 4.0, 0.01, 50.0)
 
+    def own_contacts_residual(self) -> float:
+        """The relative force residual at the current state with the contact set detected there
+        (which it then keeps): a Newton solve holds the set of its start, so its end state can
+        be an equilibrium of those contacts and not of its own."""
+        p = self._last_params()
+        self.solver.detect_contacts(self.x, p)
+        return float(self.solver.residual(self.x, np.asarray(p.gravity, dtype=np.float64)))
+
     def reseat_contacts(self, residual_tol: float, refine_iterations: int = 200, anchor_stiffness: float = 1.0,
                         rounds: int = 3, progress=None, cancel=None) -> tuple[int, float, float]:
         """Newton holds the contact set of its starting state fixed, so a vertex that was not in
@@ -437,9 +445,7 @@ class Cloth:
             for j in range(CONTACT_REDETECTIONS + 1):
                 if not res <= residual_tol:
                     break
-                p = self._last_params()
-                self.solver.detect_contacts(self.x, p)
-                if self.solver.residual(self.x, np.asarray(p.gravity, dtype=np.float64)) <= residual_tol:
+                if self.own_contacts_residual() <= residual_tol:
                     switching = 0.0
                     break
                 if j == CONTACT_REDETECTIONS:

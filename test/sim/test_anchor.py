@@ -94,13 +94,6 @@ def _sheet_on_a_coarse_sphere():
     return cloth
 
 
-def _own_contacts_residual(cloth):
-    """The force residual at the current state with the contact planes detected there."""
-    p = cloth._last_params()
-    cloth.solver.detect_contacts(cloth.x, p)
-    return cloth.solver.residual(cloth.x, np.asarray(p.gravity))
-
-
 def test_self_anchor_ends_at_an_equilibrium_of_its_own_contact_planes(monkeypatch):
     """A Newton solve holds the contact planes of its start; a self-anchoring round whose end state
     has other closest faces re-solves with those. Converged, the state is an equilibrium with the
@@ -111,7 +104,7 @@ def test_self_anchor_ends_at_an_equilibrium_of_its_own_contact_planes(monkeypatc
     import diffavatar_core.sim.cloth as cloth_module
     cloth = _sheet_on_a_coarse_sphere()
     assert cloth.self_anchor(1e-8, rounds=10, tol=1e-6) <= 1e-6
-    assert _own_contacts_residual(cloth) <= 1e-8
+    assert cloth.own_contacts_residual() <= 1e-8
     x = np.array(cloth.x)
     fresh = Cloth(cloth.control.rest, cloth.model.faces, x, pinned=np.flatnonzero(np.asarray(cloth.model.inv_mass) == 0),
                   body=(cloth.control.body_vertices, cloth.body_faces), materials=ClothMaterial(bend_stiffness=1e-5))
@@ -121,7 +114,7 @@ def test_self_anchor_ends_at_an_equilibrium_of_its_own_contact_planes(monkeypatc
     monkeypatch.setattr(cloth_module, "CONTACT_REDETECTIONS", 0)
     cloth = _sheet_on_a_coarse_sphere()
     assert cloth.self_anchor(1e-8, rounds=10, tol=1e-6) <= 1e-6
-    assert _own_contacts_residual(cloth) > 1.0
+    assert cloth.own_contacts_residual() > 1.0
 
 
 def test_self_anchor_undoes_a_round_that_misses_the_tolerance():
