@@ -70,7 +70,6 @@ def test_only_committed_iterates_become_warm_starts(skirt_problem):
     """A trial the optimizer rejects must not be the next evaluation's start (a trial can find
     another equilibrium, e.g. a skirt slid off the hips); an accepted one must."""
     model, p, g, cloth, pts, loops = skirt_problem
-    x_keep, rest_keep = np.array(cloth.x), np.array(cloth.control.rest)
     obj = CoOptObjective(cloth, g, pts, loops, RecoverOptions.from_config(residual_tol=1e-8, samples=200),
                          cage=build_cage(g))
     x0 = np.array(obj.x_warm)
@@ -80,8 +79,6 @@ def test_only_committed_iterates_become_warm_starts(skirt_problem):
     assert np.array_equal(obj.x_warm, x0) and np.abs(obj.x_last - x0).max() > 1e-4
     obj.commit()
     assert np.array_equal(obj.x_warm, obj.x_last)
-    cloth.set_control(rest=rest_keep)
-    cloth.reset(x_keep)
 
 
 def test_h1_metric_step_descends(skirt_problem):
@@ -90,7 +87,6 @@ def test_h1_metric_step_descends(skirt_problem):
     both evaluations anchored at θ's own equilibrium);
     sobolev_length 0 gives no metric (Euclidean L-BFGS)."""
     model, p, g, cloth, pts, loops = skirt_problem
-    x_keep, rest_keep = np.array(cloth.x), np.array(cloth.control.rest)
     cage = build_cage(g)
     opts = RecoverOptions.from_config(residual_tol=1e-8, samples=200, bending="fixed")
     assert CoOptObjective(cloth, g, pts, loops, opts.with_(sobolev_length=0.0), cage=cage).precondition() == {}
@@ -110,8 +106,6 @@ def test_h1_metric_step_descends(skirt_problem):
     predicted = float(gh @ step)
     assert predicted < 0 and v1 < v0
     assert abs((v1 - v0) - predicted) < 0.3 * abs(predicted), (v1 - v0, predicted)
-    cloth.set_control(rest=rest_keep)
-    cloth.reset(x_keep)
 
 
 @pytest.fixture(scope="module")
@@ -328,7 +322,6 @@ def test_a_fresh_drape_does_not_depend_on_the_previous_state(skirt_problem):
     """CoOptObjective.fresh_drape_at drapes from the template's layout (sewn, not warm-started):
     the same parameters give the same equilibrium whatever the cloth held before."""
     model, p, g, cloth, pts, loops = skirt_problem
-    x_keep, rest_keep = np.array(cloth.x), np.array(cloth.control.rest)
     obj = CoOptObjective(cloth, g, pts, loops, RecoverOptions.from_config(residual_tol=1e-8, samples=200),
                          cage=build_cage(g))
     theta = obj.initial_params()
@@ -340,15 +333,12 @@ def test_a_fresh_drape_does_not_depend_on_the_previous_state(skirt_problem):
     obj.fresh_drape_at(rest, bend, None)
     np.testing.assert_array_equal(np.array(cloth.x), x1)
     assert cloth.solver.residual(cloth.x, np.array([0, -9.81, 0.0])) <= 1e-8
-    cloth.set_control(rest=rest_keep)
-    cloth.reset(x_keep)
 
 
 def test_try_fresh_keeps_the_lower_loss_warm_start(skirt_problem):
     """try_fresh evaluates φ from the current warm start and from a fresh drape of the same
     parameters and keeps the lower as the next warm start: the next evaluation starts from it."""
     model, p, g, cloth, pts, loops = skirt_problem
-    x_keep, rest_keep = np.array(cloth.x), np.array(cloth.control.rest)
     obj = CoOptObjective(cloth, g, pts, loops, RecoverOptions.from_config(residual_tol=1e-8, samples=200),
                          cage=build_cage(g))
     theta = obj.initial_params()
@@ -361,8 +351,6 @@ def test_try_fresh_keeps_the_lower_loss_warm_start(skirt_problem):
     assert np.isfinite(v_warm) and used == (v_fresh < v_warm)
     # the kept start: the fresh equilibrium's evaluation, or the warm start as it was
     assert np.array_equal(obj.x_warm, obj.x_last if used else x_before)
-    cloth.set_control(rest=rest_keep)
-    cloth.reset(x_keep)
 
 
 def test_body_after_holds_the_body_first(skirt_problem):
@@ -381,8 +369,6 @@ def test_body_after_holds_the_body_first(skirt_problem):
         assert res.iterations == 2 and np.abs(res.rest - g.rest).max() > 1e-4
         moved.append(float(np.abs(res.body_params.shape - p.shape).max() + np.abs(res.body_params.pose - p.pose).max()))
     assert moved[0] == 0.0 and moved[1] > 0.0, moved
-    cloth.set_control(rest=rest_keep, body_vertices=model.pose(p))
-    cloth.reset(x_keep)
 
 
 def test_a_stage_start_that_no_longer_drapes_ends_the_run_with_the_last_iterate(skirt_problem, monkeypatch):
@@ -392,7 +378,6 @@ def test_a_stage_start_that_no_longer_drapes_ends_the_run_with_the_last_iterate(
     configuration error (a zero step size) still raises."""
     from diffavatar_core.pipeline import coopt
     model, p, g, cloth, pts, loops = skirt_problem
-    x_keep, rest_keep = np.array(cloth.x), np.array(cloth.control.rest)
     broken = {"on": False}
     call, try_fresh = coopt.CoOptObjective.__call__, coopt.CoOptObjective.try_fresh
 
@@ -416,8 +401,6 @@ def test_a_stage_start_that_no_longer_drapes_ends_the_run_with_the_last_iterate(
     from diffavatar_core.pipeline.options import StepSizes
     with pytest.raises(ValueError, match="step"):
         coopt.co_optimize(cloth, g, pts, loops, opts.with_(step_sizes=StepSizes(handles=0.0)), cage=build_cage(g))
-    cloth.set_control(rest=rest_keep)
-    cloth.reset(x_keep)
 
 
 def test_revert_undoes_every_commit_of_a_trial(skirt_problem):
@@ -477,8 +460,6 @@ def test_stretch_compliance_gradient_and_result(skirt_problem):
     np.testing.assert_allclose(res.stretch_compliance, np.array(cloth.control.stretch_compliance))
     with pytest.raises(ValueError, match="stretch"):
         RecoverOptions.from_config(stretch="panel")
-    cloth.set_control(rest=rest_keep, stretch_compliance=c_keep)
-    cloth.reset(x_keep)
 
 
 def test_upper_garment_template_follows_the_sleeve_length():
