@@ -42,7 +42,11 @@ def test_map_reproduces_the_template_at_other_measurements(name):
 def test_measurement_gradient_matches_central_differences(skirt_problem):
     """dφ/dm = (∂ζ/∂m)ᵀ dφ/dζ (adjoint through the drape, then the outline's Jacobian) against
     central differences of φ(ζ(m)) at a fixed warm start, for the cage and for the 'without
-    control cage' parametrization (every rest vertex W ζ(m))."""
+    control cage' parametrization (every rest vertex W ζ(m)). The warm start (with the contact
+    planes detected there) defines φ; where Newton from the fixture's drape puts the stencil's
+    sides on two equilibria 1 cm apart at every step (round-off seed 17), φ has no derivative
+    there, and the differences are taken from the centre's own drape instead — the warm start the
+    optimizer's next iteration would use."""
     model, p, g, cloth, pts, loops = skirt_problem
     lm = model.landmarks(p)
     x_keep = np.array(cloth.x)
@@ -52,27 +56,31 @@ def test_measurement_gradient_matches_central_differences(skirt_problem):
     m = mm.values0 + np.array([0.01, 0.005, -0.02])
     for c in (cage, None):
         obj = CoOptObjective(cloth, g, pts, loops, opts, cage=c)
+        warm = x_keep
+        for attempt in range(2):
+            def phi(v):
+                obj.x_warm = warm
+                return measurement_objective(obj, mm, {}, v)
+            v0, grad, _ = phi(m)
+            x_centre = np.array(cloth.x)
+            an0 = grad["measurements"]
+            assert an0.shape == (3,) and np.isfinite(v0)
 
-        def phi(v):
-            obj.x_warm = x_keep
-            return measurement_objective(obj, mm, {}, v)
-        v0, grad, _ = phi(m)
-        x_centre = np.array(cloth.x)
-        an0 = grad["measurements"]
-        assert an0.shape == (3,) and np.isfinite(v0)
-
-        def evaluate(i):
-            def at(step):
-                e = np.zeros(3)
-                e[i] = step
-                v, gr, _ = phi(m + e)
-                return v, gr["measurements"][i], np.array(cloth.x)
-            return at
-        for i in range(3):
+            def evaluate(i):
+                def at(step):
+                    e = np.zeros(3)
+                    e[i] = step
+                    v, gr, _ = phi(m + e)
+                    return v, gr["measurements"][i], np.array(cloth.x)
+                return at
             # 1e-6 m: at 1e-5 the waist's contact set changes within the stencil (3e-4 off)
-            fd, an, gap = branch_difference(evaluate(i), 1e-6, x_centre, an0[i])
-            assert gap <= BRANCH_TOL, (c is None, i, gap)
-            assert abs(an - fd) <= 1e-5 * max(np.abs(an0).max(), 1e-12), (c is None, i, an, fd)  # measured ≤ 6e-8
+            diffs = [branch_difference(evaluate(i), 1e-6, x_centre, an0[i]) for i in range(3)]
+            if all(gap <= BRANCH_TOL for _, _, gap in diffs):
+                break
+            warm = x_centre
+        for i, (fd, an, gap) in enumerate(diffs):
+            assert gap <= BRANCH_TOL, (c is None, attempt, i, gap)
+            assert abs(an - fd) <= 1e-5 * max(np.abs(an0).max(), 1e-12), (c is None, attempt, i, an, fd)  # measured ≤ 6e-8
 
 
 def test_fit_recovers_a_known_length(skirt_problem, skirt_true_length):
