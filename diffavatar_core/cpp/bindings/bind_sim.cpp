@@ -181,6 +181,16 @@ void bind_sim(py::module_& m) {
       .def("residual", &XpbdSolver::residual, py::arg("x"), py::arg("gravity"))
       .def("max_penetration", &XpbdSolver::max_penetration, py::arg("x"))
       .def_property_readonly("num_contacts", [](const XpbdSolver& s) { return s.contacts().size(); })
+      .def_property_readonly(
+          "contact_pairs",
+          [](const XpbdSolver& s) {
+            RowMatX2i out(static_cast<Eigen::Index>(s.contacts().size()), 2);
+            for (std::size_t j = 0; j < s.contacts().size(); ++j)
+              out.row(static_cast<Eigen::Index>(j)) << s.contacts()[j].vertex, s.contacts()[j].tri;
+            return out;
+          },
+          "The held contacts (#C×2): cloth vertex, body triangle — a vertex over a concave body edge "
+          "holds two (BodyCollider::detect).")
       .def("energy",
            [](const XpbdSolver& s, const RowMatX3d& x, const Vec3& g) {
              return total_energy(s.energy_context(g), x);

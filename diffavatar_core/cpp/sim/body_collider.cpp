@@ -1,20 +1,51 @@
 #include "sim/body_collider.hpp"
 
 #include <algorithm>
+#include <map>
+#include <utility>
 
 #include "geometry/vertex_normals.hpp"
 
 namespace diffavatar {
 
+namespace {
+
+// Faces closer to coplanar than this (sine of their angle, 0.06°) hold one plane: over a 1 cm
+// triangle their planes differ by < 10 µm, and a second plane would only double the stiffness.
+constexpr double kValleyMinSine = 1e-3;
+
+// The triangle across each edge k = (v_k, v_k+1) of F, −1 on a border or a non-manifold edge.
+RowMatX3i edge_neighbours(const RefX3i& F) {
+  std::map<std::pair<int, int>, std::vector<std::pair<int, int>>> edges;
+  for (int t = 0; t < F.rows(); ++t)
+    for (int k = 0; k < 3; ++k) {
+      const int a = F(t, k), b = F(t, (k + 1) % 3);
+      edges[{std::min(a, b), std::max(a, b)}].push_back({t, k});
+    }
+  RowMatX3i out = RowMatX3i::Constant(F.rows(), 3, -1);
+  for (const auto& [e, tk] : edges)
+    if (tk.size() == 2) {
+      out(tk[0].first, tk[0].second) = tk[1].first;
+      out(tk[1].first, tk[1].second) = tk[0].first;
+    }
+  return out;
+}
+
+}  // namespace
+
 BodyCollider::BodyCollider(const RefX3d& V, const RefX3i& F) {
-  if (F.rows() > 0) bvh_ = std::make_shared<TriangleMeshBvh>(V, F);
+  if (F.rows() > 0) {
+    bvh_ = std::make_shared<TriangleMeshBvh>(V, F);
+    edge_neighbours_ = std::make_shared<const RowMatX3i>(edge_neighbours(F));
+  }
 }
 
 void BodyCollider::set_vertices(const RefX3d& V) {
   if (bvh_) bvh_->set_vertices(V);
 }
 
-std::vector<Contact> BodyCollider::detect(const RowMatX3d& x, const VecXd& inv_mass, double radius) const {
+std::vector<Contact> BodyCollider::detect(const RowMatX3d& x, const VecXd& inv_mass, double radius,
+                                          bool valleys) const {
   std::vector<Contact> out;
   if (!bvh_) return out;
   const int n = static_cast<int>(x.rows());
@@ -24,10 +55,31 @@ std::vector<Contact> BodyCollider::detect(const RowMatX3d& x, const VecXd& inv_m
     if (inv_mass[i] == 0.0) continue;
     hits[i] = bvh_->closest(x.row(i).transpose(), radius);
   }
-  for (int i = 0; i < n; ++i)
-    if (hits[i].tri >= 0)
-      out.push_back({i, hits[i].tri, {hits[i].bary[0], hits[i].bary[1], hits[i].bary[2]}, hits[i].region,
-                     x.row(i).transpose()});
+  const RowMatX3d& V = bvh_->vertices();
+  const RowMatX3i& F = bvh_->faces();
+  for (int i = 0; i < n; ++i) {
+    const int t = hits[i].tri;
+    if (t < 0) continue;
+    const Vec3 p = x.row(i).transpose();
+    out.push_back({i, t, {hits[i].bary[0], hits[i].bary[1], hits[i].bary[2]}, hits[i].region, p});
+    if (!valleys) continue;
+    const Vec3 n_t = bvh_->face_normal(t), b_t = V.row(F(t, 0)).transpose();
+    for (int k = 0; k < 3; ++k) {
+      const int u = (*edge_neighbours_)(t, k);
+      if (u < 0) continue;
+      int opposite = -1;  // T''s vertex off the shared edge
+      for (int j = 0; j < 3; ++j)
+        if (F(u, j) != F(t, k) && F(u, j) != F(t, (k + 1) % 3)) opposite = F(u, j);
+      if (opposite < 0 || !(n_t.dot(V.row(opposite).transpose() - b_t) > 0.0)) continue;  // not a valley
+      const Vec3 n_u = bvh_->face_normal(u), b_u = V.row(F(u, 0)).transpose();
+      if (!(n_t.cross(n_u).norm() > kValleyMinSine)) continue;  // (nearly) coplanar: one plane
+      if (!(std::abs(n_u.dot(p - b_u)) < radius)) continue;
+      Eigen::Vector3d w;
+      int region;
+      closest_point_triangle(p, b_u, V.row(F(u, 1)).transpose(), V.row(F(u, 2)).transpose(), w, region);
+      out.push_back({i, u, {w[0], w[1], w[2]}, region, p});
+    }
+  }
   return out;
 }
 

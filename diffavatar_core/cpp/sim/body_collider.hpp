@@ -67,7 +67,13 @@ class BodyCollider {
   /// Contacts of the free vertices of x closer than `radius` (m) to the body surface,
   /// sorted by vertex (deterministic), at most one per vertex (its closest point; the
   /// sweeps and the trajectory adjoint project and reverse contacts in parallel on that basis).
-  std::vector<Contact> detect(const RowMatX3d& x, const VecXd& inv_mass, double radius) const;
+  /// valleys (the quasi-static solves' sets, XpbdSolver::detect_contacts): a vertex whose closest
+  /// triangle T has an edge neighbour T' rising above T's plane (a concave body edge) holds T''s
+  /// face plane too while its gap to it is within ±radius. Over a valley the free space is above
+  /// both planes; one plane per vertex — whichever is closer — switches at the bisector, and a
+  /// solve holding one set ends where the other is closer (a re-detected set never reaches
+  /// equilibrium). T''s plane extends below T, so it adds nothing away from the crease.
+  std::vector<Contact> detect(const RowMatX3d& x, const VecXd& inv_mass, double radius, bool valleys = false) const;
   /// Signed distance of p to the body (m): positive outside, by the closest triangle's normal.
   double signed_distance(const Vec3& p) const;
   /// Deepest penetration below the body surface over the vertices of x (m, ≥ 0).
@@ -75,6 +81,7 @@ class BodyCollider {
 
  private:
   std::shared_ptr<TriangleMeshBvh> bvh_;
+  std::shared_ptr<const RowMatX3i> edge_neighbours_;  // triangle across edge k (v_k v_k+1), −1 on a border
 };
 
 }  // namespace diffavatar

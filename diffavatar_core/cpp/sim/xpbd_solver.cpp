@@ -66,7 +66,8 @@ void XpbdSolver::set_contacts(std::vector<Contact> contacts) {
 }
 
 void XpbdSolver::detect_contacts(const RowMatX3d& x, const SimParams& p) {
-  set_contacts(collider_.detect(x, model_.inv_mass, model_.thickness + p.contact_radius));
+  // the quasi-static solves hold both planes over a concave body edge (face planes; BodyCollider::detect)
+  set_contacts(collider_.detect(x, model_.inv_mass, model_.thickness + p.contact_radius, !model_.smooth_contact));
 }
 
 void XpbdSolver::set_sweep_plan(const SweepPlanParams& p) {
