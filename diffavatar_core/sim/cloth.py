@@ -492,13 +492,16 @@ class Cloth:
         ft = np.linalg.norm(f - fn[:, None] * n, axis=1)
         return ~((N >= 0) & (ft <= mu * N))
 
-    def reequilibrate(self, x_warm, residual_tol: float = 1e-7, refine_iterations: int = 80,
+    def reequilibrate(self, x_warm, residual_tol: float = 1e-7, refine_iterations: int = 200,
                       max_steps: int = 600, iterations: int = 100, cancel=None, fast: bool = False,
                       substeps: int = 1) -> None:
         """Equilibrium of the current control from a nearby one x_warm (V,3) m — what an
         optimizer needs after a small change of θ: Newton from x_warm first (anchored to it),
         a full XPBD + Newton drape from x_warm only if Newton misses residual_tol (fast and
-        substeps: that drape's, as in drape). Raises ValueError when no equilibrium is reached."""
+        substeps: that drape's, as in drape). Raises ValueError when no equilibrium is reached.
+        refine_iterations 200: with both planes held over concave body edges a skirt's Newton
+        from the template's own drape took 80 + 12 (residual 3.6e-3 after 80; round-off seed 1),
+        and its fallback drape did not converge — the recovery stopped before its first step."""
         self.state.x = x_warm
         self.state.v = np.zeros_like(self.state.x)
         _, res = self.refine(keep_anchor=False, residual_tol=residual_tol, refine_iterations=refine_iterations,
