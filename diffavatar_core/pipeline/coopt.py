@@ -50,6 +50,7 @@ class CoOptResult:
     guided_kept: int = 0         # scan-guided drapes (guided_stiffness) that became the warm start
     measurement_fit: object = None  # measurement_fit.MeasurementFitResult of the first stage, or None
     stretch_compliance: np.ndarray | None = None  # (G, 3) m/N [warp, weft, shear] of the returned drape
+    stop_reason: str = ""        # stopped 'invalid_start': why the stage's start did not re-drape
 
 
 def seam_mismatch_pct(g, rest) -> float:
@@ -328,7 +329,7 @@ def co_optimize(cloth, garment, scan_points, scan_loops: dict, opts: RecoverOpti
     obj = CoOptObjective(cloth, garment, scan_points, scan_loops, opts, cage, body_model, body_params, cancel,
                          body_points, scan_mesh)
     params = obj.initial_params()
-    history, fit, base = [], None, 0
+    history, fit, base, stop_reason = [], None, 0, ""
     if opts.iterations and opts.measurement_fit_iterations and measurement_map is not None:
         def report_fit(h):
             history.append({**h, "stage": "measurements"})
@@ -408,10 +409,10 @@ def co_optimize(cloth, garment, scan_points, scan_loops: dict, opts: RecoverOpti
                     on_iteration(h)
             try:
                 res = run_stage(evaluate, free, lr, n, report)
-            except _EvaluationFailed:
+            except _EvaluationFailed as exc:
                 # the stage's start (the last accepted iterate) no longer re-drapes from its own
                 # equilibrium: keep that iterate and its committed drape rather than lose the run
-                stopped = "invalid_start"
+                stopped, stop_reason = "invalid_start", str(exc)
                 break
             params = {**res.params, **held}
             it, rej, stopped = it + res.iterations, rej + res.rejected, res.stopped
@@ -430,4 +431,5 @@ def co_optimize(cloth, garment, scan_points, scan_loops: dict, opts: RecoverOpti
         cloth.set_control(rest=rest, bend_stiffness=bend, body_vertices=bv, stretch_compliance=stretch)
         cloth.reset(obj.x_warm)
     return CoOptResult(rest, bend, bp if obj.use_body else body_params, bv, np.array(cloth.x), history, it, rej,
-                       stopped, kept, gkept, fit, np.asarray(cloth.control.stretch_compliance).reshape(-1, 3).copy())
+                       stopped, kept, gkept, fit, np.asarray(cloth.control.stretch_compliance).reshape(-1, 3).copy(),
+                       stop_reason)

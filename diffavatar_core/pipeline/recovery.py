@@ -332,6 +332,9 @@ def _recover(scan, opts: RecoverOptions, ctl: "_Control", body_model, t0: float)
         material = ClothMaterial(density=material.density, warp_compliance=float(warp), weft_compliance=float(weft),
                                  shear_compliance=float(shear), bend_stiffness=material.bend_stiffness)
     warnings = list(data.warnings)
+    if co.stopped == "invalid_start":
+        warnings.append(f"the optimization stopped after {co.iterations} of {opts.iterations} iterations: its "
+                        f"last iterate no longer re-draped ({co.stop_reason}); that iterate is returned")
 
     # output resolution (coarse-to-fine through the cage) ------------------------------------------
     g_out, rest_out, x_out, handles_out = g, co.rest, co.x, (cage.handles if cage is not None else None)

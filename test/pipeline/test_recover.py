@@ -254,6 +254,22 @@ def test_options_from_node_dict_and_config():
         RecoverOptions.from_config(body_trim_distance=0)
 
 
+def test_a_recovery_whose_start_does_not_drape_warns_and_returns_the_template(monkeypatch):
+    """Fault injected: the objective cannot be evaluated at all (every drape of the optimizer
+    fails). The recovery does not raise: the optimization stops before its first step, the
+    result says so in its warnings with the drape's reason, and the assets are the template's
+    pattern on its equilibrium (what was produced is kept)."""
+    from diffavatar_core.pipeline import coopt
+
+    def failing_call(self, params):
+        raise ValueError("drape did not converge: injected")
+    monkeypatch.setattr(coopt.CoOptObjective, "__call__", failing_call)
+    r = recover(SAMPLE, {"units": "cm", "iterations": 2})
+    assert r.metrics["stopped"] == "invalid_start" and r.iterations == 0
+    assert any("stopped after 0 of 2 iterations" in w and "injected" in w for w in r.warnings), r.warnings
+    assert np.isfinite(r.metrics["chamfer_final_cm"]) and r.garment_vertices.shape[1] == 3
+
+
 def test_cancel_stops_the_job():
     ev = threading.Event()
 
@@ -395,6 +411,7 @@ def test_a_stage_start_that_no_longer_drapes_ends_the_run_with_the_last_iterate(
     opts = RecoverOptions.from_config(residual_tol=1e-8, samples=200, iterations=4, fresh_every=2, bending="fixed")
     res = coopt.co_optimize(cloth, g, pts, loops, opts, cage=build_cage(g))
     assert res.stopped == "invalid_start" and res.iterations == 2 and len(res.history) == 3
+    assert res.stop_reason == "drape did not converge: injected"
     assert np.abs(res.rest - g.rest).max() > 1e-4
     assert cloth.solver.residual(cloth.x, np.array([0, -9.81, 0.0])) <= 1e-6
     # a configuration error is not a failed drape: it still raises
