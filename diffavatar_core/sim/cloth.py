@@ -415,11 +415,10 @@ class Cloth:
         geometric (the skirt template on the default body: 0.93 → 0.036 → 0 mm). A Newton solve
         holds the contact planes of its start; a round re-solves (anchors kept, up to
         CONTACT_REDETECTIONS times) while its end state detects others, so that a converged state is
-        an equilibrium with its own contacts too. With contact_normals="face" the long-sleeve
-        template's drape on the default body alternates between two states 6–7 mm apart (~100
-        vertices have another closest triangle in each; anchors 10 or 100× stiffer and friction do
-        not end it); the smooth plane turns continuously as a vertex's closest body point moves
-        and its rounds converge (0.9, 9.1, 0.32, 0.20, 0.13, 0.09 mm; docs/simulation.md).
+        an equilibrium with its own contacts too. Face planes that keep switching are vertices
+        over concave body edges, where the solves hold both faces' planes since stop 35 (the
+        long-sleeve template's rounds on the default body, which alternated 7.3–7.5 mm apart for
+        ever, converge: 1.47, 0.008 mm; docs/simulation.md, "Valleys").
 
         friction μ > 0 (Coulomb, dimensionless): a vertex keeps its anchor while the anchor's pull
         is a static friction force the body can exert — tangential part ≤ μ × the normal force
