@@ -167,7 +167,7 @@ def main():
     ap.add_argument("--friction", type=float, default=None,
                     help="Coulomb μ of the fine drapes (the fine truth's settle and the output's); "
                          "default: the config's output_friction")
-    ap.add_argument("--contact-normals", choices=("face", "smooth"), default=None,
+    ap.add_argument("--contact-normals", choices=("face", "smooth", "valley"), default=None,
                     help="the contact plane of the truths and the recovery (sim/contact_kernel.hpp); "
                          "default: the config's contact_normals")
     ap.add_argument("--paper-optimizer", action="store_true",

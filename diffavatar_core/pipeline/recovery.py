@@ -211,8 +211,8 @@ def _assets_drape(g, co, material, body_vertices, body_faces, opts, cancel):
     the equilibrium of the written assets alone, which reloaded do not move. With output_friction
     μ > 0, an anchor whose pull is a static friction force (inside its contact's Coulomb cone) is
     kept: the drape is a static equilibrium under friction μ. Rounds that alternate between two
-    contact sets do not stop either way (the long sleeve's with the face plane did until the
-    solves held both planes over concave body edges, docs/simulation.md). Returns (drape or
+    contact sets do not stop either way (the long sleeve's with the face plane; with
+    contact_normals "smooth" or "valley" they converge, docs/simulation.md). Returns (drape or
     None when no round re-solved, the largest distance m from a vertex to an anchor that is not
     such a force)."""
     cloth = _garment_cloth(g, co.rest, co.x, material, (body_vertices, body_faces), co.bend_stiffness,

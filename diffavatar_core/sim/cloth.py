@@ -68,8 +68,9 @@ RESEAT_MAX_DEPTH = 0.05
 CONTACT_REDETECTIONS = 3
 
 # The contact plane of a cloth vertex on the body (sim/contact_kernel.hpp, docs/simulation.md): its
-# closest triangle's own plane, or the tangent plane with the interpolated vertex normal.
-CONTACT_NORMALS = ("face", "smooth")
+# closest triangle's own plane, the tangent plane with the interpolated vertex normal, or face planes
+# with both faces' over a concave body edge in the quasi-static solves (valley; sim/body_collider.hpp).
+CONTACT_NORMALS = ("face", "smooth", "valley")
 
 
 def _sim_params(dt, iterations, gravity, damping, contact_radius, max_speed, fast=False, friction=0.0):
@@ -102,7 +103,8 @@ class Cloth:
     pattern x, weft = pattern y; a Garment's is Garment.face_grain()); masses_follow_rest: the
     lumped masses (density × a third of the adjacent rest areas, kg) follow every new rest shape
     given to set_control instead of staying those of `rest` (what an optimizer of the pattern
-    wants: a larger pattern is heavier).
+    wants: a larger pattern is heavier); contact_normals: the contact plane (CONTACT_NORMALS) —
+    face, smooth, or valley (face planes, and in Newton both faces' over a concave body edge).
     """
 
     def __init__(self, rest, faces, x0, seams=None, pinned=None, groups=None,
@@ -147,7 +149,8 @@ class Cloth:
         model = _core.build_cloth_model(len(rest), F, rest, groups, seams, pinned, bF,
                                         materials[0].density, float(thickness),
                                         float(contact_stiffness), float(seam_compliance), grain,
-                                        bool(masses_follow_rest), contact_normals == "smooth")
+                                        bool(masses_follow_rest), contact_normals == "smooth",
+                                        contact_normals == "valley")
         control = _core.ClothControl(rest, np.array([m.compliance for m in materials]),
                                      np.array([m.bend_stiffness for m in materials]), bV)
         self.solver = _core.XpbdSolver(model, control)
@@ -416,9 +419,9 @@ class Cloth:
         holds the contact planes of its start; a round re-solves (anchors kept, up to
         CONTACT_REDETECTIONS times) while its end state detects others, so that a converged state is
         an equilibrium with its own contacts too. Face planes that keep switching are vertices
-        over concave body edges, where the solves hold both faces' planes since stop 35 (the
-        long-sleeve template's rounds on the default body, which alternated 7.3–7.5 mm apart for
-        ever, converge: 1.47, 0.008 mm; docs/simulation.md, "Valleys").
+        over concave body edges; with contact_normals="valley" the solves hold both faces' planes
+        there and the long-sleeve template's rounds on the default body, which alternate 7.3–7.5
+        mm apart for ever with "face", converge (1.47, 0.008 mm; docs/simulation.md, "Valleys").
 
         friction μ > 0 (Coulomb, dimensionless): a vertex keeps its anchor while the anchor's pull
         is a static friction force the body can exert — tangential part ≤ μ × the normal force
@@ -498,9 +501,9 @@ class Cloth:
         optimizer needs after a small change of θ: Newton from x_warm first (anchored to it),
         a full XPBD + Newton drape from x_warm only if Newton misses residual_tol (fast and
         substeps: that drape's, as in drape). Raises ValueError when no equilibrium is reached.
-        refine_iterations 200: with both planes held over concave body edges a skirt's Newton
-        from the template's own drape took 80 + 12 (residual 3.6e-3 after 80; round-off seed 1),
-        and its fallback drape did not converge — the recovery stopped before its first step."""
+        refine_iterations 200: with valley contacts a skirt's Newton from the template's own drape
+        took 80 + 12 (residual 3.6e-3 after 80; round-off seed 1), and its fallback drape did not
+        converge — the recovery stopped before its first step."""
         self.state.x = x_warm
         self.state.v = np.zeros_like(self.state.x)
         _, res = self.refine(keep_anchor=False, residual_tol=residual_tol, refine_iterations=refine_iterations,

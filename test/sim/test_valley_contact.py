@@ -1,9 +1,9 @@
-"""Contact over concave body edges (sim/body_collider.hpp, BodyCollider::detect valleys). Over a
-valley the free space is above both faces' planes; a vertex holding one plane — whichever face is
-closer — is pushed out of it into the other, and re-detected it holds the other one: the solves
-alternate between two states and none is an equilibrium of the planes detected at it (the skirt
-test fixture: 0.34 mm for ever, residual ~2, all at valleys of 0.6–6°). The quasi-static solves now
-hold both planes there. Geometry on an inverted pyramid (a bowl whose diagonals are valleys) and
+"""Contact over concave body edges (contact_normals="valley"; sim/body_collider.hpp,
+BodyCollider::detect valleys). Over a valley the free space is above both faces' planes; a vertex
+holding one plane — whichever face is closer ("face") — is pushed out of it into the other, and
+re-detected it holds the other one: the solves alternate between two states and none is an
+equilibrium of the planes detected at it (the skirt test fixture: 0.34 mm for ever, residual ~2,
+all at valleys of 0.6–6°). With "valley" the quasi-static solves hold both planes there. Geometry on an inverted pyramid (a bowl whose diagonals are valleys) and
 a pyramid (ridges); the equilibrium adjoint through doubled contacts against central differences."""
 import numpy as np
 import pytest
@@ -35,11 +35,12 @@ def _pyramid(sign, n=6, half=0.15):
     return V, np.array(F, np.int32)
 
 
-def _sheet(body, height, n=11, size=0.2, **kw):
+def _sheet(body, height, n=11, size=0.2, contact_normals="valley", **kw):
     """A size² sheet (m) lying flat `height` above the origin, free (no pins), over `body`."""
     rest, F = grid_sheet(size, size, n, n)
     x0 = np.column_stack([rest[:, 0] - size / 2, np.full(len(rest), height), rest[:, 1] - size / 2])
-    return Cloth(rest, F, x0, body=body, materials=kw.pop("materials", ClothMaterial(bend_stiffness=1e-5)), **kw)
+    return Cloth(rest, F, x0, body=body, materials=kw.pop("materials", ClothMaterial(bend_stiffness=1e-5)),
+                 contact_normals=contact_normals, **kw)
 
 
 def _gaps(cloth):
@@ -56,13 +57,14 @@ def _gaps(cloth):
     return out
 
 
+@pytest.mark.parametrize("normals", ["valley", "face"])
 @pytest.mark.parametrize("sign", [1, -1])
-def test_a_vertex_over_a_valley_holds_both_planes_and_over_a_ridge_one(sign):
+def test_a_vertex_over_a_valley_holds_both_planes_and_over_a_ridge_one(sign, normals):
     """Points 2 mm above the surface: over the bowl's diagonals (valleys) the vertices within reach
     of both faces hold two planes, every other vertex one — its closest face's; over the tent's
-    diagonals (ridges) every vertex holds one. Each held plane is its face's plane."""
+    diagonals (ridges) every vertex holds one. With the face plane every vertex holds one."""
     V, F = _pyramid(sign)
-    cloth = _sheet((V, F), 0.0, n=21)
+    cloth = _sheet((V, F), 0.0, n=21, contact_normals=normals)
     x = np.array(cloth.x)
     x[:, 1] = sign * SLOPE * np.maximum(np.abs(x[:, 0]), np.abs(x[:, 2])) + 0.002
     cloth.reset(x)
@@ -76,7 +78,7 @@ def test_a_vertex_over_a_valley_holds_both_planes_and_over_a_ridge_one(sign):
     # the faces' edges on the diagonals |x| = |z| (the creases; elsewhere neighbours are coplanar)
     on = np.isclose(np.abs(V[:, 0]), np.abs(V[:, 2]))
     creases = np.array([sum(on[f[k]] and on[f[(k + 1) % 3]] for k in range(3)) for f in F])
-    if sign < 0:
+    if sign < 0 or normals == "face":
         assert per_vertex.max() == 1
     else:
         # 2 mm above a 2.5 cm face, every neighbour's plane is within reach (±14 mm)
@@ -92,7 +94,7 @@ def test_a_sheet_in_a_bowl_reaches_an_equilibrium_of_its_own_contact_planes():
     equilibrium of the planes detected at its end (residual ≤ 1e-8), above every plane it holds
     within 0.1 mm of the collision thickness. Each solve is tied to its start (refine without an
     anchor), so the free sheet's sliding relaxes over the solves: < 1 µm by the tenth. With one
-    plane per vertex the drape did not converge (relative residual 1.9e4) and the re-solves
+    plane per vertex ("face") the drape did not converge (relative residual 1.9e4) and the re-solves
     carried the sheet through the bowl."""
     V, F = _pyramid(1)
     cloth = _sheet((V, F), 0.02)
@@ -111,6 +113,15 @@ def test_a_sheet_in_a_bowl_reaches_an_equilibrium_of_its_own_contact_planes():
         assert min(g for _, g in _gaps(cloth)) > -1e-4
     assert moves[-1] < 1e-6, moves
     assert np.bincount(cloth.solver.contact_pairs[:, 0]).max() >= 2    # it does lie across the valleys
+
+
+def test_valley_contacts_need_the_face_plane():
+    V, F = _pyramid(1)
+    with pytest.raises(ValueError, match="valley"):
+        _core.build_cloth_model(4, np.array([[0, 1, 2], [0, 2, 3]], np.int32),
+                                np.array([[0, 0], [1, 0], [1, 1], [0, 1.0]]), np.zeros(2, np.int32),
+                                np.zeros((0, 2), np.int32), [], F, 0.15, 0.004, 2e3, 1e-5, np.zeros(0), False, True, True)
+    assert _sheet((V, F), 0.02).model.valley_contact and not _sheet((V, F), 0.02, contact_normals="face").model.valley_contact
 
 
 def test_equilibrium_adjoint_through_valley_contacts_matches_central_differences():

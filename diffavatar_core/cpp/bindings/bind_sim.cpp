@@ -29,6 +29,7 @@ void bind_sim(py::module_& m) {
       .def_readonly("thickness", &ClothModel::thickness)
       .def_readonly("contact_stiffness", &ClothModel::contact_stiffness)
       .def_readonly("smooth_contact", &ClothModel::smooth_contact)
+      .def_readonly("valley_contact", &ClothModel::valley_contact)
       .def_readonly("seam_compliance", &ClothModel::seam_compliance)
       .def_property_readonly("num_colors", [](const ClothModel& c) {
         return py::make_tuple(c.tri_colors.size(), c.hinge_colors.size(), c.seam_colors.size());
@@ -38,15 +39,16 @@ void bind_sim(py::module_& m) {
         [](int nv, const RefX3i& F, const RefX2d& rest, const VecXi& groups, const RefX2i& seams,
            const std::vector<int>& pinned, const RefX3i& body_faces, double density, double thickness,
            double contact_stiffness, double seam_compliance, const VecXd& tri_grain, bool masses_follow_rest,
-           bool smooth_contact) {
+           bool smooth_contact, bool valley_contact) {
           return build_cloth_model(nv, F, rest, groups, seams, pinned, body_faces, density, thickness,
-                                   contact_stiffness, seam_compliance, tri_grain, masses_follow_rest, smooth_contact);
+                                   contact_stiffness, seam_compliance, tri_grain, masses_follow_rest, smooth_contact,
+                                   valley_contact);
         },
         py::arg("num_vertices"), py::arg("faces"), py::arg("rest"), py::arg("tri_group"), py::arg("seams"),
         py::arg("pinned"), py::arg("body_faces"), py::arg("density"), py::arg("thickness"),
         py::arg("contact_stiffness"), py::arg("seam_compliance"), py::arg("tri_grain") = VecXd(),
         py::arg("masses_follow_rest") = false, py::arg("smooth_contact") = false,
-        py::call_guard<py::gil_scoped_release>());
+        py::arg("valley_contact") = false, py::call_guard<py::gil_scoped_release>());
 
   py::class_<ClothControl>(m, "ClothControl")
       .def(py::init<>())

@@ -51,7 +51,8 @@ std::vector<std::vector<int>> color_constraints(const std::vector<std::vector<in
 ClothModel build_cloth_model(int nv, const RefX3i& F, const RefX2d& rest, const VecXi& tri_group,
                              const RefX2i& seams, const std::vector<int>& pinned, const RefX3i& body_faces,
                              double density, double thickness, double contact_stiffness, double seam_compliance,
-                             const VecXd& tri_grain, bool masses_follow_rest, bool smooth_contact) {
+                             const VecXd& tri_grain, bool masses_follow_rest, bool smooth_contact,
+                             bool valley_contact) {
   if (nv <= 0) throw std::invalid_argument("cloth model: no vertices");
   if (rest.rows() != nv) throw std::invalid_argument("cloth model: rest must have one row per vertex");
   if (tri_group.size() != F.rows()) throw std::invalid_argument("cloth model: tri_group must have one entry per face");
@@ -60,9 +61,12 @@ ClothModel build_cloth_model(int nv, const RefX3i& F, const RefX2d& rest, const 
   if (tri_grain.size() != 0 && tri_grain.size() != F.rows())
     throw std::invalid_argument("cloth model: tri_grain must have one entry per face (rad) or be empty");
   if (!tri_grain.allFinite()) throw std::invalid_argument("cloth model: tri_grain must be finite (rad)");
+  if (smooth_contact && valley_contact)
+    throw std::invalid_argument("cloth model: valley contacts hold face planes; not with smooth_contact");
   ClothModel m;
   m.num_vertices = nv;
   m.smooth_contact = smooth_contact;
+  m.valley_contact = valley_contact;
   m.tri_grain = tri_grain.size() ? tri_grain : VecXd::Zero(F.rows());
   m.tri_frame.resize(F.rows());
   for (int t = 0; t < F.rows(); ++t) m.tri_frame[t] = grain_rotation(m.tri_grain[t]);

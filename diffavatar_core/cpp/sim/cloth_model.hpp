@@ -35,6 +35,8 @@ struct ClothModel {
   double thickness = 0.004;          // collision thickness h (m)
   double contact_stiffness = 2.0e3;  // k_c (N/m)
   bool smooth_contact = false;       // contact plane: interpolated vertex normal (true) or the face's (contact_kernel.hpp)
+  bool valley_contact = false;       // face planes; over a concave body edge both faces' in the quasi-static solves
+                                     // (BodyCollider::detect valleys)
   double seam_compliance = 1.0e-5;   // α_seam (m/N)
   // Constraint colouring: each colour lists constraints sharing no vertex.
   std::vector<std::vector<int>> tri_colors, hinge_colors, seam_colors;
@@ -47,7 +49,7 @@ ClothModel build_cloth_model(int num_vertices, const RefX3i& faces, const RefX2d
                              const RefX2i& seams, const std::vector<int>& pinned, const RefX3i& body_faces,
                              double density, double thickness, double contact_stiffness, double seam_compliance,
                              const VecXd& tri_grain = VecXd(), bool masses_follow_rest = false,
-                             bool smooth_contact = false);
+                             bool smooth_contact = false, bool valley_contact = false);
 
 /// m.mass[i] = ρ Σ_{t∋i} A_t(rest)/3 (kg) and m.inv_mass (0 for m.pinned) from the rest areas of
 /// `rest` (#V×2, m). Throws std::invalid_argument for a degenerate or clockwise rest triangle.

@@ -66,8 +66,8 @@ void XpbdSolver::set_contacts(std::vector<Contact> contacts) {
 }
 
 void XpbdSolver::detect_contacts(const RowMatX3d& x, const SimParams& p) {
-  // the quasi-static solves hold both planes over a concave body edge (face planes; BodyCollider::detect)
-  set_contacts(collider_.detect(x, model_.inv_mass, model_.thickness + p.contact_radius, !model_.smooth_contact));
+  // with valley_contact the quasi-static solves hold both planes over a concave body edge (BodyCollider::detect)
+  set_contacts(collider_.detect(x, model_.inv_mass, model_.thickness + p.contact_radius, model_.valley_contact));
 }
 
 void XpbdSolver::set_sweep_plan(const SweepPlanParams& p) {

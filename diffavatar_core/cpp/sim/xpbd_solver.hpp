@@ -111,7 +111,7 @@ class XpbdSolver {
   double force_residual(const RowMatX3d& G, const Vec3& gravity) const;
   double max_penetration(const RowMatX3d& x) const { return collider_.max_penetration(x); }
   /// The contact set the quasi-static solves hold (refine, residual, the equilibrium adjoint):
-  /// with face planes, both planes over a concave body edge (BodyCollider::detect valleys).
+  /// with ClothModel::valley_contact, both planes over a concave body edge (BodyCollider::detect valleys).
   void detect_contacts(const RowMatX3d& x, const SimParams& p);
   const std::vector<Contact>& contacts() const { return contacts_; }
   std::vector<int> free_dofs() const;
