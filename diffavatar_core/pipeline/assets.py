@@ -13,7 +13,7 @@ from ..body import BodyModel
 from ..body.params import BodyParams
 from ..pattern.export import load_pattern_json
 from ..pattern.garment import Garment
-from ..sim.cloth import Cloth
+from ..sim.cloth import CONTACT_NORMALS, Cloth
 from ..sim.material import ClothMaterial
 
 
@@ -25,12 +25,15 @@ class RecoveredAssets:
     body_model: BodyModel
     body_params: BodyParams
     summary: dict               # result.json
+    contact_normals: str = "face"   # the contact plane of the recovery (result.json material; older results: face)
 
     def cloth(self) -> Cloth:
-        """The garment as a Cloth on the recovered body, in its recovered drape."""
+        """The garment as a Cloth on the recovered body, in its recovered drape, with the recovery's
+        contact plane (the drape is an equilibrium of that one)."""
         g = self.garment
         return Cloth(g.rest, g.faces, g.x0, seams=g.seams, groups=g.panel[g.faces[:, 0]], materials=self.materials,
-                     body=(self.body_model.pose(self.body_params), self.body_model.faces), thickness=self.thickness, grain=g.face_grain())
+                     body=(self.body_model.pose(self.body_params), self.body_model.faces), thickness=self.thickness,
+                     grain=g.face_grain(), contact_normals=self.contact_normals)
 
 
 def load_result(result_dir, body_model: BodyModel | None = None) -> RecoveredAssets:
@@ -57,4 +60,7 @@ def load_result(result_dir, body_model: BodyModel | None = None) -> RecoveredAss
     b = summary["body_params"]
     params = BodyParams(np.asarray(b["shape"]), np.asarray(b["pose_euler_zyx_rad"]), np.asarray(b["bone_scales"]),
                         np.asarray(b["rotation_axis_angle_rad"]), np.asarray(b["translation_m"]))
-    return RecoveredAssets(g, materials, float(m["thickness_m"]), model, params, summary)
+    normals = m.get("contact_normals", "face")
+    if normals not in CONTACT_NORMALS:
+        raise ValueError(f"{d / 'result.json'}: material.contact_normals {normals!r} is not one of {CONTACT_NORMALS}")
+    return RecoveredAssets(g, materials, float(m["thickness_m"]), model, params, summary, normals)

@@ -393,7 +393,7 @@ def _recover(scan, opts: RecoverOptions, ctl: "_Control", body_model, t0: float)
                          panel_bending_stiffness=bend.copy() if opts.bending == "panel" else np.zeros(0),
                          compliance_warp=material.warp_compliance, compliance_weft=material.weft_compliance,
                          compliance_shear=material.shear_compliance, density=material.density,
-                         thickness=float(cloth.model.thickness))
+                         thickness=float(cloth.model.thickness), contact_normals=opts.contact_normals)
     result = RecoveryResult(
         garment_type=data.garment_type or data.garment_class, template_name=template_name,
         pattern=pattern_assets(g_final, handles_out), material=mat,

@@ -29,6 +29,7 @@ class MaterialAssets:
     compliance_shear: float         # m/N
     density: float                  # kg/m²
     thickness: float                # m (collision thickness)
+    contact_normals: str = "face"   # the cloth–body contact plane the drape is an equilibrium of (sim.cloth.CONTACT_NORMALS)
 
 
 @dataclass

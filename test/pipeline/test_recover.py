@@ -182,6 +182,29 @@ def test_result_directory_reloads_as_its_own_equilibrium(recovered):
     assert d < max(5e-4, 2 * move), (d, move)   # self-anchored (Cloth.self_anchor)
 
 
+def test_a_reload_uses_the_recoverys_contact_plane(recovered, tmp_path):
+    """result.json records the contact plane the drape is an equilibrium of; the reloaded Cloth
+    uses it (a valley recovery reloaded with face planes would move); an unknown one is named."""
+    import shutil
+    from diffavatar_core.pipeline.assets import load_result
+    _, out, _ = recovered
+    assert json.loads((out / "result.json").read_text())["material"]["contact_normals"] == "face"
+    m = load_result(out).cloth().model
+    assert not m.smooth_contact and not m.valley_contact
+    for normals, smooth, valley in (("valley", False, True), ("smooth", True, False)):
+        d = tmp_path / normals
+        shutil.copytree(out, d)
+        summary = json.loads((d / "result.json").read_text())
+        summary["material"]["contact_normals"] = normals
+        (d / "result.json").write_text(json.dumps(summary))
+        m = load_result(d).cloth().model
+        assert (m.smooth_contact, m.valley_contact) == (smooth, valley)
+    summary["material"]["contact_normals"] = "phong"
+    (d / "result.json").write_text(json.dumps(summary))
+    with pytest.raises(ValueError, match="contact_normals 'phong'"):
+        load_result(d)
+
+
 def test_animate_a_result_directory(recovered, tmp_path):
     """`diffavatar animate RESULT_DIR`: the recovered skirt stays on the walking recovered body."""
     import subprocess
