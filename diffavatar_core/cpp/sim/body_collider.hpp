@@ -65,9 +65,9 @@ class BodyCollider {
   bool empty() const { return !bvh_; }
   void set_vertices(const RefX3d& V);
   /// Contacts of the free vertices of x closer than `radius` (m) to the body surface,
-  /// sorted by vertex (deterministic), at most one per vertex (its closest point; the
-  /// sweeps and the trajectory adjoint project and reverse contacts in parallel on that basis).
-  /// valleys (the quasi-static solves' sets, XpbdSolver::detect_contacts): a vertex whose closest
+  /// sorted by vertex (deterministic), one per vertex (its closest point; the sweeps and the
+  /// trajectory adjoint project and reverse contacts in parallel on that basis) unless `valleys`
+  /// (only for the quasi-static solves' sets, XpbdSolver::detect_contacts): then a vertex whose closest
   /// triangle T has an edge neighbour T' rising above T's plane (a concave body edge) holds T''s
   /// face plane too while its gap to it is within ±radius. Over a valley the free space is above
   /// both planes; one plane per vertex — whichever is closer — switches at the bisector, and a
