@@ -126,6 +126,7 @@ def result_to_assets(job_id: str, result) -> "AvatarAssets":
     msg.material.compliance_shear = float(m.compliance_shear)
     msg.material.density = float(m.density)
     msg.material.thickness = float(m.thickness)
+    msg.material.contact_normals = str(m.contact_normals)
     b = result.body
     msg.body.model_id = b.model_id
     msg.body.shape = _f64(b.shape)
@@ -216,7 +217,8 @@ def assets_to_result(msg, loss_history=()):
         material=MaterialAssets(bending_stiffness=m.bending_stiffness,
                                 panel_bending_stiffness=np.frombuffer(m.panel_bending_stiffness, np.float64),
                                 compliance_warp=m.compliance_warp, compliance_weft=m.compliance_weft,
-                                compliance_shear=m.compliance_shear, density=m.density, thickness=m.thickness),
+                                compliance_shear=m.compliance_shear, density=m.density, thickness=m.thickness,
+                                contact_normals=m.contact_normals or "face"),
         body=BodyAssets(model_id=b.model_id, shape=a["shape"], joint_names=list(b.joint_names), pose=a["pose"],
                         bone_scales=np.frombuffer(b.bone_scales, np.float64),
                         global_transform=np.frombuffer(b.global_transform, np.float64)),

@@ -16,7 +16,7 @@ def example_result(seed=0):
                             panel_vertex_start=np.array([0, 12, 30]), panel_names=["front", "back"],
                             panel_grain_rad=np.array([0.0, 0.1]), seam_pairs=np.array([[0, 12], [1, 13]]),
                             handles=np.array([0, 3, 12, 20]))
-    material = MaterialAssets(2e-6, np.array([1e-6, 3e-6]), 1e-3, 2e-3, 5e-3, 0.15, 0.004)
+    material = MaterialAssets(2e-6, np.array([1e-6, 3e-6]), 1e-3, 2e-3, 5e-3, 0.15, 0.004, "valley")
     body = BodyAssets("test-model", rng.normal(size=6), ["root", "spine"], rng.normal(size=(2, 3)),
                       np.ones(2), np.zeros(6))
     gv = rng.random((n, 3))
@@ -35,6 +35,7 @@ def test_written_files_round_trip(tmp_path):
     summary = json.loads((out / "result.json").read_text())
     assert summary["metrics"]["chamfer_final_cm"] == 1.2 and summary["iterations"] == 2
     assert summary["material"]["bending_stiffness_Nm"] == 2e-6
+    assert summary["material"]["contact_normals"] == "valley"
     assert len(summary["loss_history"]) == 3
     draped = trimesh.load(out / "garment_draped.obj", process=False, maintain_order=True)
     np.testing.assert_allclose(draped.vertices, r.garment_vertices, atol=1e-8)
@@ -48,7 +49,7 @@ def test_written_files_round_trip(tmp_path):
 
 def test_ros_assets_round_trip():
     pytest.importorskip("rclpy")
-    from diffavatar_ros.convert import assets_to_arrays, result_to_assets
+    from diffavatar_ros.convert import assets_to_arrays, assets_to_result, result_to_assets
     r = example_result(1)
     msg = result_to_assets("job-7", r)
     a = assets_to_arrays(msg)
@@ -58,3 +59,6 @@ def test_ros_assets_round_trip():
     np.testing.assert_array_equal(a["pose"], r.body.pose)
     assert msg.job_id == "job-7" and msg.error_code == 0 and msg.chamfer_final_cm == 1.2
     assert list(msg.pattern.panel_names) == ["front", "back"]
+    assert msg.material.contact_normals == "valley"
+    back = assets_to_result(msg).material
+    assert (back.contact_normals, back.thickness, back.compliance_weft) == ("valley", 0.004, 2e-3)
