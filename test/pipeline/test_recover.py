@@ -291,6 +291,7 @@ def test_a_recovery_whose_start_does_not_drape_warns_and_returns_the_template(mo
     assert r.metrics["stopped"] == "invalid_start" and r.iterations == 0
     assert any("stopped after 0 of 2 iterations" in w and "injected" in w for w in r.warnings), r.warnings
     assert np.isfinite(r.metrics["chamfer_final_cm"]) and r.garment_vertices.shape[1] == 3
+    assert abs(r.metrics["pattern_area_m2"] / r.metrics["template_area_m2"] - 1) < 1e-9   # the template's pattern
 
 
 def test_cancel_stops_the_job():

@@ -3,8 +3,9 @@ BodyCollider::detect valleys). Over a valley the free space is above both faces'
 holding one plane — whichever face is closer ("face") — is pushed out of it into the other, and
 re-detected it holds the other one: the solves alternate between two states and none is an
 equilibrium of the planes detected at it (the skirt test fixture: 0.34 mm for ever, residual ~2,
-all at valleys of 0.6–6°). With "valley" the quasi-static solves hold both planes there. Geometry on an inverted pyramid (a bowl whose diagonals are valleys) and
-a pyramid (ridges); the equilibrium adjoint through doubled contacts against central differences."""
+all at valleys of 0.6–6°). With "valley" the quasi-static solves hold both planes there.
+Geometry on an inverted pyramid (a bowl whose diagonals are valleys) and a pyramid (ridges); the
+equilibrium adjoint through doubled contacts against central differences."""
 import numpy as np
 import pytest
 
