@@ -191,8 +191,8 @@ void bind_sim(py::module_& m) {
               out.row(static_cast<Eigen::Index>(j)) << s.contacts()[j].vertex, s.contacts()[j].tri;
             return out;
           },
-          "The held contacts (#C×2): cloth vertex, body triangle — a vertex over a concave body edge "
-          "holds two (BodyCollider::detect).")
+          "The held contacts (#C×2): cloth vertex, body triangle — with valley contacts a vertex over a "
+          "concave body edge holds two (BodyCollider::detect).")
       .def("energy",
            [](const XpbdSolver& s, const RowMatX3d& x, const Vec3& g) {
              return total_energy(s.energy_context(g), x);
