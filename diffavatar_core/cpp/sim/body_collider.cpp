@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <map>
+#include <stdexcept>
 #include <utility>
 
 #include "geometry/vertex_normals.hpp"
@@ -33,10 +34,10 @@ RowMatX3i edge_neighbours(const RefX3i& F) {
 
 }  // namespace
 
-BodyCollider::BodyCollider(const RefX3d& V, const RefX3i& F) {
+BodyCollider::BodyCollider(const RefX3d& V, const RefX3i& F, bool valleys) {
   if (F.rows() > 0) {
     bvh_ = std::make_shared<TriangleMeshBvh>(V, F);
-    edge_neighbours_ = std::make_shared<const RowMatX3i>(edge_neighbours(F));
+    if (valleys) edge_neighbours_ = std::make_shared<const RowMatX3i>(edge_neighbours(F));
   }
 }
 
@@ -48,6 +49,7 @@ std::vector<Contact> BodyCollider::detect(const RowMatX3d& x, const VecXd& inv_m
                                           bool valleys) const {
   std::vector<Contact> out;
   if (!bvh_) return out;
+  if (valleys && !edge_neighbours_) throw std::logic_error("BodyCollider::detect: built without valleys");
   const int n = static_cast<int>(x.rows());
   std::vector<SurfaceHit> hits(n);
 #pragma omp parallel for schedule(static) if (n >= 256)

@@ -61,7 +61,8 @@ ContactPlanes contact_planes(const RowMatX3d& V, const RowMatX3i& F, const RowMa
 class BodyCollider {
  public:
   BodyCollider() = default;
-  BodyCollider(const RefX3d& V, const RefX3i& F);
+  /// valleys: also the faces' edge adjacency, which detect(..., valleys = true) needs.
+  BodyCollider(const RefX3d& V, const RefX3i& F, bool valleys = false);
   bool empty() const { return !bvh_; }
   void set_vertices(const RefX3d& V);
   /// Contacts of the free vertices of x closer than `radius` (m) to the body surface,
@@ -81,7 +82,8 @@ class BodyCollider {
 
  private:
   std::shared_ptr<TriangleMeshBvh> bvh_;
-  std::shared_ptr<const RowMatX3i> edge_neighbours_;  // triangle across edge k (v_k v_k+1), −1 on a border
+  std::shared_ptr<const RowMatX3i> edge_neighbours_;  // triangle across edge k (v_k v_k+1), −1 on a border;
+                                                      // only when built with valleys
 };
 
 }  // namespace diffavatar

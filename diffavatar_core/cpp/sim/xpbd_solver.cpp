@@ -23,7 +23,7 @@ constexpr int kParallelMin = 1024;
 XpbdSolver::XpbdSolver(ClothModel model, ClothControl control) : model_(std::move(model)) {
   plan_ = build_sweep_plan(model_, SweepPlanParams());
   layout_ = sweep_tape_layout(plan_);
-  collider_ = BodyCollider(control.body_vertices, model_.body_faces);
+  collider_ = BodyCollider(control.body_vertices, model_.body_faces, model_.valley_contact);
   set_control(std::move(control));
 }
 
