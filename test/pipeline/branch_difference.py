@@ -24,3 +24,23 @@ def branch_difference(evaluate, h: float, x_centre, an_centre: float):
     off = max(np.abs(xp - x_centre).max(), np.abs(xm - x_centre).max())
     an = an_centre if off <= BRANCH_TOL else 0.5 * (gp + gm)
     return (vp - vm) / (2 * step), an, gap
+
+
+def differences_on_one_branch(centre, side, checks, warm):
+    """centre(warm) -> (the adjoint's gradient {group: array}, drape (V, 3) m) at θ from the warm
+    start `warm`; side(warm, group, k, s) -> (φ, the adjoint's dφ/dθ[group][k], drape) at
+    θ + s e_(group, k); checks(gradient) -> [(group, k, h)]. Returns ([(group, k, central difference,
+    adjoint, gap)] per check — branch_difference's —, the centre's gradient), all from `warm`, or all again
+    from the centre's own drape where some check's sides stay on two branches at h and h/3: θ then
+    sits at a basin boundary of Newton from `warm` (round-off seed 17's measurement point: sides
+    1 cm apart at every step) and φ, whose contact planes are those detected at the warm start, has
+    no derivative there. The centre's drape is the warm start the optimizer's next iteration uses."""
+    for _ in range(2):
+        grad, x_centre = centre(warm)
+        diffs = [(group, k, *branch_difference(lambda s, g=group, k=k: side(warm, g, k, s), h, x_centre,
+                                                grad[group][k]))
+                 for group, k, h in checks(grad)]
+        if all(d[-1] <= BRANCH_TOL for d in diffs):
+            break
+        warm = x_centre
+    return diffs, grad
