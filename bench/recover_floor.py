@@ -8,7 +8,10 @@ per case (Chamfer to the scan, cm) next to the true drape's own Chamfer (the noi
 unmodified template's. Not a test: the ratio target of bench/recover.py assumes the truth's own
 drape, which a recovery on another triangulation need not reproduce fold for fold.
 
-Run: `.venv/bin/python bench/recover_floor.py [--templates skirt,tshirt] [--cases 3]`."""
+`--contact-normals face|smooth|valley`: the contact plane of the truth and of every drape here.
+
+Run: `.venv/bin/python bench/recover_floor.py [--templates skirt,tshirt] [--cases 3]
+[--contact-normals valley]`."""
 
 import numpy as np
 
@@ -19,7 +22,7 @@ from diffavatar_core.pattern.cage import build_cage, cage_handles
 from diffavatar_core.pattern.templates import make_template
 from diffavatar_core.pipeline.synthetic import make_case
 from diffavatar_core.scan import load_scan
-from diffavatar_core.sim.cloth import Cloth
+from diffavatar_core.sim.cloth import CONTACT_NORMALS, Cloth
 from diffavatar_core.sim.material import ClothMaterial
 
 
@@ -50,8 +53,9 @@ def truth_handles(g, cage, gt) -> np.ndarray:
     return zeta
 
 
-def floor_case(template: str, seed: int, bend: float) -> dict:
-    case = make_case(template, seed=seed, bend_stiffness=bend)
+def floor_case(template: str, seed: int, bend: float, args) -> dict:
+    planes = args.contact_normals
+    case = make_case(template, seed=seed, bend_stiffness=bend, contact_normals=planes)
     g = make_template(template, landmarks=BodyModel.default().landmarks(case.body_params), edge_length=0.04)
     cage = build_cage(g)
     rest_truth = cage.rest(truth_handles(g, cage, case.garment))
@@ -62,7 +66,7 @@ def floor_case(template: str, seed: int, bend: float) -> dict:
     def cloth(rest):
         c = Cloth(g.rest, g.faces, g.x0, seams=g.seams, groups=g.panel[g.faces[:, 0]],
                   materials=[ClothMaterial(bend_stiffness=bend)] * len(g.panels),
-                  body=(case.body_vertices, case.body_faces), grain=g.face_grain())
+                  body=(case.body_vertices, case.body_faces), grain=g.face_grain(), contact_normals=planes)
         c.set_control(rest=rest)
         c.sew()
         return c
@@ -70,7 +74,7 @@ def floor_case(template: str, seed: int, bend: float) -> dict:
     def drape(c):
         r = c.drape(max_steps=200, iterations=40, residual_tol=1e-7, refine_iterations=120, raise_on_divergence=False)
         return bool(r.converged)
-    out = {"template": template, "seed": seed, "bend_stiffness_Nm": bend,
+    out = {"template": template, "seed": seed, "bend_stiffness_Nm": bend, "contact_normals": planes,
            "truth_drape_cm": cm(case.garment_x, case.garment.faces)}
     c = cloth(g.rest)
     out["template_converged"] = drape(c)
@@ -86,7 +90,9 @@ def floor_case(template: str, seed: int, bend: float) -> dict:
 
 
 def main():
-    run_grid("recover_floor", floor_case)
+    def add_arguments(ap):
+        ap.add_argument("--contact-normals", default="face", choices=CONTACT_NORMALS)
+    run_grid("recover_floor", floor_case, add_arguments=add_arguments)
 
 
 if __name__ == "__main__":
