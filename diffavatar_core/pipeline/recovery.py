@@ -155,7 +155,7 @@ def _garment_cloth(g: Garment, rest, x, material, body, bend_stiffness=None, mas
     replaces the material's. Its masses follow the rest shape (masses_follow_rest): every
     pattern the optimizer tries weighs what its area does, and the equilibrium adjoint
     differentiates that; with False they stay those of `rest`. contact_normals: the contact
-    plane (face | smooth, sim/contact_kernel.hpp)."""
+    plane (sim.cloth.CONTACT_NORMALS)."""
     cloth = Cloth(rest, g.faces, x, seams=g.seams, groups=g.panel[g.faces[:, 0]],
                   materials=[material] * len(g.panels), body=body, grain=g.face_grain(),
                   masses_follow_rest=masses_follow_rest, contact_normals=contact_normals)
@@ -205,20 +205,37 @@ def _initial_drape(cloth, opts, cancel):
 
 
 def _assets_drape(g, co, material, body_vertices, body_faces, opts, cancel):
-    """(V, 3) m: the co-optimization's drape re-solved on a Cloth of the recovered pattern and
-    re-anchored at itself until it stays put (Cloth.self_anchor). The optimizer's equilibria
-    hold anchor springs (the refinement's static-friction proxy, the scan guidance); this is
-    the equilibrium of the written assets alone, which reloaded do not move. With output_friction
-    μ > 0, an anchor whose pull is a static friction force (inside its contact's Coulomb cone) is
-    kept: the drape is a static equilibrium under friction μ. Rounds that alternate between two
-    contact sets do not stop either way (the long sleeve's with the face plane; with
-    contact_normals "smooth" or "valley" they converge, docs/simulation.md). Returns (drape or
-    None when no round re-solved, the largest distance m from a vertex to an anchor that is not
-    such a force)."""
-    cloth = _garment_cloth(g, co.rest, co.x, material, (body_vertices, body_faces), co.bend_stiffness,
-                           contact_normals=opts.contact_normals)
-    move = cloth.self_anchor(opts.residual_tol, tol=SELF_ANCHOR_TOL, cancel=cancel, friction=opts.output_friction)
-    return (np.array(cloth.x) if np.isfinite(move) else None), move
+    """The co-optimization's drape re-solved on a Cloth of the recovered pattern and re-anchored
+    at itself until it stays put (Cloth.self_anchor). The optimizer's equilibria hold anchor
+    springs (the refinement's static-friction proxy, the scan guidance); this is the equilibrium
+    of the written assets alone, which reloaded do not move.
+    With output_friction μ > 0, an anchor whose pull is a static friction force (inside its
+    contact's Coulomb cone) is kept: the drape is a static equilibrium under friction μ.
+
+    With the face plane, rounds whose contact planes alternate do not stop: vertices over concave
+    body edges, where one face's plane per vertex switches at the bisector (the long sleeve's 3–11
+    mm, some skirts' 0.4–0.7 mm; docs/simulation.md, "Valleys"). Such a drape is re-anchored once
+    more with valley contacts (both faces' planes there; the same planes everywhere else), from
+    the same start, and kept when it moves less: the assets then record contact_normals "valley",
+    with which a reload (load_result(...).cloth()) holds that equilibrium. The optimization itself
+    keeps the face plane (its fits are better: BENCHMARKS.md, stop 35).
+
+    Returns (drape, move, contact plane, the face plane's move or None): drape None when no round
+    re-solved; move (m) the largest distance from a vertex to an anchor that is not such a force
+    (≤ SELF_ANCHOR_TOL: converged); the contact plane the drape is an equilibrium of; the face
+    plane's move (m) when the valley re-anchoring replaced it."""
+    def anchored(planes):
+        cloth = _garment_cloth(g, co.rest, co.x, material, (body_vertices, body_faces), co.bend_stiffness,
+                               contact_normals=planes)
+        move = cloth.self_anchor(opts.residual_tol, tol=SELF_ANCHOR_TOL, cancel=cancel, friction=opts.output_friction)
+        return (np.array(cloth.x) if np.isfinite(move) else None), move, planes
+
+    out = anchored(opts.contact_normals)
+    if opts.contact_normals == "face" and not out[1] <= SELF_ANCHOR_TOL:
+        valley = anchored("valley")
+        if valley[0] is not None and (out[0] is None or valley[1] < out[1]):
+            return valley + (out[1],)
+    return out + (None,)
 
 
 def _body_assets(model: BodyModel, p) -> BodyAssets:
@@ -354,17 +371,21 @@ def _recover(scan, opts: RecoverOptions, ctl: "_Control", body_model, t0: float)
             except ValueError as exc:   # nothing produced so far is lost: keep the coarse result
                 warnings.append(f"the fine output mesh (edge {fine_edge} m) did not settle ({exc}); "
                                 f"the optimized mesh (edge {opts.edge_length} m) is returned")
+    output_planes = opts.contact_normals   # the contact plane the output drape is an equilibrium of
     if g_out is g:   # the optimized mesh is the output
-        x_assets, move = _assets_drape(g, co, material, body_final, model.faces, opts, ctl.token)
+        x_assets, move, planes, face_move = _assets_drape(g, co, material, body_final, model.faces, opts, ctl.token)
         if x_assets is None:
             warnings.append("the recovered drape did not re-solve without the optimizer's anchor springs; the "
                             "optimizer's (anchored) drape is returned")
         else:
-            x_out = x_assets
+            x_out, output_planes = x_assets, planes
             output_drape["self_anchor_move_m"] = move   # the last re-anchoring round's largest move
+            output_drape["contact_normals"] = planes
+            if face_move is not None:   # re-anchored with valley contacts where face planes alternated
+                output_drape["face_plane_move_m"] = face_move
             if move > SELF_ANCHOR_TOL:
                 warnings.append(f"the recovered drape still moved {1e3 * move:.2f} mm in its last re-anchoring "
-                                f"(Cloth.self_anchor, friction {opts.output_friction}): reloaded, the assets may "
+                                f"(Cloth.self_anchor, friction {opts.output_friction}, contact plane {planes}): reloaded, the assets may "
                                 f"settle by about that much")
 
     # result ------------------------------------------------------------------------------------
@@ -393,7 +414,7 @@ def _recover(scan, opts: RecoverOptions, ctl: "_Control", body_model, t0: float)
                          panel_bending_stiffness=bend.copy() if opts.bending == "panel" else np.zeros(0),
                          compliance_warp=material.warp_compliance, compliance_weft=material.weft_compliance,
                          compliance_shear=material.shear_compliance, density=material.density,
-                         thickness=float(cloth.model.thickness), contact_normals=opts.contact_normals)
+                         thickness=float(cloth.model.thickness), contact_normals=output_planes)
     result = RecoveryResult(
         garment_type=data.garment_type or data.garment_class, template_name=template_name,
         pattern=pattern_assets(g_final, handles_out), material=mat,
