@@ -407,7 +407,7 @@ class Cloth:
             its, pen = its + k, float(self.solver.max_penetration(self.x))
         return its, res, pen
 
-    def self_anchor(self, residual_tol: float, rounds: int = 10, tol: float = 1e-4, refine_iterations: int = 120,
+    def self_anchor(self, residual_tol: float, rounds: int = 10, tol: float = 1e-4, refine_iterations: int = 400,
                     cancel=None, friction: float = 0.0) -> float:
         """Re-solves the equilibrium with the static-friction anchors (κ = 1/s²) moved to the
         current state, until the state stays put (no vertex moves more than tol, m; `rounds` at
@@ -422,6 +422,9 @@ class Cloth:
         over concave body edges; with contact_normals="valley" the solves hold both faces' planes
         there and the long-sleeve template's rounds on the default body, which alternate 7.3–7.5
         mm apart for ever with "face", converge (1.47, 0.008 mm; docs/simulation.md, "Valleys").
+        refine_iterations: the Newton budget of each solve, as the drape job's (400): a recovered
+        skirt's second round needed 167 (189 with valley contacts), and at 120 its failure left
+        the recovery's output with the optimizer's anchored drape (benchmark skirt 102).
 
         friction μ > 0 (Coulomb, dimensionless): a vertex keeps its anchor while the anchor's pull
         is a static friction force the body can exert — tangential part ≤ μ × the normal force
