@@ -63,6 +63,16 @@ class SettleResult:
 # would drag it across the body.
 RESEAT_MAX_DEPTH = 0.05
 
+# Cloth.reequilibrate: Newton's budget from the warm start before the fallback drape. A Newton
+# that needs more than 80 from a nearby equilibrium is crawling to another fold state, which the
+# XPBD fallback from the same start avoids better: at 200 the recovery benchmark's long sleeve
+# ended at Chamfer ratio 0.73 (0.57 at 80) and skirt 102 at 0.28 (0.26), the other four cases
+# measured unchanged (BENCHMARKS.md, stop 36). Valley contacts (two planes per crease vertex)
+# need ~50% more iterations: at 80 a skirt's first re-drape missed (80 + 12 needed, round-off
+# seed 1), its fallback drape failed, and the recovery stopped before its first step.
+REEQUILIBRATE_ITERATIONS = 80
+REEQUILIBRATE_ITERATIONS_VALLEY = 200
+
 # Cloth.self_anchor: how many times a round re-solves with the contact planes its end state
 # detects (a Newton solve holds those of its start), anchors kept.
 CONTACT_REDETECTIONS = 3
@@ -497,16 +507,17 @@ class Cloth:
         ft = np.linalg.norm(f - fn[:, None] * n, axis=1)
         return ~((N >= 0) & (ft <= mu * N))
 
-    def reequilibrate(self, x_warm, residual_tol: float = 1e-7, refine_iterations: int = 200,
+    def reequilibrate(self, x_warm, residual_tol: float = 1e-7, refine_iterations: int | None = None,
                       max_steps: int = 600, iterations: int = 100, cancel=None, fast: bool = False,
                       substeps: int = 1) -> None:
         """Equilibrium of the current control from a nearby one x_warm (V,3) m — what an
         optimizer needs after a small change of θ: Newton from x_warm first (anchored to it),
         a full XPBD + Newton drape from x_warm only if Newton misses residual_tol (fast and
         substeps: that drape's, as in drape). Raises ValueError when no equilibrium is reached.
-        refine_iterations 200: with valley contacts a skirt's Newton from the template's own drape
-        took 80 + 12 (residual 3.6e-3 after 80; round-off seed 1), and its fallback drape did not
-        converge — the recovery stopped before its first step."""
+        refine_iterations: Newton's budget before the fallback drape (None: REEQUILIBRATE_ITERATIONS,
+        with valley contacts REEQUILIBRATE_ITERATIONS_VALLEY)."""
+        if refine_iterations is None:
+            refine_iterations = REEQUILIBRATE_ITERATIONS_VALLEY if self.model.valley_contact else REEQUILIBRATE_ITERATIONS
         self.state.x = x_warm
         self.state.v = np.zeros_like(self.state.x)
         _, res = self.refine(keep_anchor=False, residual_tol=residual_tol, refine_iterations=refine_iterations,
