@@ -302,6 +302,46 @@ def test_a_recovery_whose_start_does_not_drape_warns_and_returns_the_template(mo
     assert abs(r.metrics["pattern_area_m2"] / r.metrics["template_area_m2"] - 1) < 1e-9   # the template's pattern
 
 
+def test_an_initial_drape_that_face_planes_do_not_converge_continues_with_valley_contacts(monkeypatch, tmp_path):
+    """Fault injected: the initial drape with face contact planes reports no convergence (as
+    benchmark skirt 103's did, Newton residual 13.4: face planes alternating over concave body
+    edges). The recovery re-drapes with valley contacts, warns, optimizes and writes with them:
+    the material records 'valley', the reload holds the drape, and the Chamfer distance falls.
+    When that drape fails too, the recovery raises, naming the drape."""
+    import dataclasses
+    from diffavatar_core.pipeline import recovery as rec
+    from diffavatar_core.pipeline.assets import load_result
+    real = rec._initial_drape
+    tried = []
+
+    def face_fails(cloth, opts, cancel):
+        r, steps = real(cloth, opts, cancel)
+        tried.append(bool(cloth.model.valley_contact))
+        if not cloth.model.valley_contact:
+            r = dataclasses.replace(r, converged=False, message="injected")
+        return r, steps
+    monkeypatch.setattr(rec, "_initial_drape", face_fails)
+    r = recover(SAMPLE, {"units": "cm", "iterations": 2})
+    assert tried == [False, True]
+    assert any("did not converge with face contact planes (injected" in w for w in r.warnings), r.warnings
+    assert r.material.contact_normals == "valley" == r.metrics["output_drape"]["contact_normals"]
+    assert "face_plane_move_m" not in r.metrics["output_drape"]
+    assert r.metrics["chamfer_final_cm"] < r.metrics["chamfer_initial_cm"]
+    out = write_result(r, tmp_path / "res", scan=r.scan_mesh)
+    cloth = load_result(out).cloth()
+    assert cloth.model.valley_contact
+    _, res = cloth.refine(keep_anchor=False, residual_tol=1e-7, refine_iterations=100)
+    assert res <= 1e-6
+    assert np.linalg.norm(np.array(cloth.x) - r.garment_vertices, axis=1).max() < 5e-4
+
+    def both_fail(cloth, opts, cancel):
+        r, steps = real(cloth, opts, cancel)
+        return dataclasses.replace(r, converged=False, message="injected"), steps
+    monkeypatch.setattr(rec, "_initial_drape", both_fail)
+    with pytest.raises(RecoveryError, match="initial drape of template 'skirt'.*injected"):
+        recover(SAMPLE, {"units": "cm", "iterations": 2})
+
+
 def test_cancel_stops_the_job():
     ev = threading.Event()
 
