@@ -63,7 +63,8 @@ def face_components(F: np.ndarray, n_vertices: int) -> tuple[int, np.ndarray]:
 
 @dataclass(frozen=True)
 class DroppedComponent:
-    """A connected part removed as a floating fragment (area m², centroid m, core frame)."""
+    """A small connected part (area m², centroid m, core frame): removed as a floating fragment,
+    or kept as a piece near the scan's large parts."""
     faces: int
     vertices: int
     area: float
@@ -74,25 +75,49 @@ class DroppedComponent:
         return f"{self.faces} faces / {self.vertices} vertices, {self.area * 1e4:.3g} cm² at ({c}) m"
 
 
-def small_components(V: np.ndarray, F: np.ndarray, min_fraction: float) -> tuple[np.ndarray, list[DroppedComponent]]:
-    """Faces of the connected parts whose area is below min_fraction × the largest part's area.
-    Returns (mask (M,) of faces to drop, descriptions of the dropped parts, largest first)."""
+def small_components(V: np.ndarray, F: np.ndarray, min_fraction: float,
+                     keep_fraction: float = 0.0) -> tuple[np.ndarray, list[DroppedComponent]]:
+    """Faces of the connected parts whose area is below min_fraction × the largest part's area
+    and, with keep_fraction > 0, none of whose vertices lies within keep_fraction × the largest
+    part's bounding-box diagonal of a vertex of a larger part: such a small part near the large
+    ones is a piece of the subject cut off by occlusion (a hand beyond a long sleeve's cuff, skin
+    in a neckline), not a floating fragment. Relative, like min_fraction, so that a scan read in
+    the wrong units is cleaned the same. Returns (mask (M,) of faces to drop, descriptions of the
+    dropped parts, largest first)."""
+    drop, dropped, _ = components_to_drop(V, F, min_fraction, keep_fraction)
+    return drop, dropped
+
+
+def components_to_drop(V: np.ndarray, F: np.ndarray, min_fraction: float, keep_fraction: float = 0.0):
+    """small_components, also returning the descriptions of the small parts kept because they lie
+    near the large parts: (drop mask (M,), dropped, kept near)."""
     n, comp = face_components(F, V.shape[0])
     area = triangle_areas(V, F)
     comp_area = np.bincount(comp, weights=area, minlength=n)
     has_faces = np.bincount(comp, minlength=n) > 0     # isolated vertices are no parts
     small = has_faces & (comp_area < min_fraction * comp_area.max())
-    drop = small[comp]
-    dropped = []
-    for c in np.flatnonzero(small)[np.argsort(-comp_area[small])]:
-        fc = comp == c
-        vids = np.unique(F[fc])
-        w = area[fc]
-        centers = V[F[fc]].mean(axis=1)
-        centroid = (w @ centers) / w.sum() if w.sum() > 0 else centers.mean(axis=0)  # fc non-empty
-        dropped.append(DroppedComponent(int(fc.sum()), len(vids), float(comp_area[c]),
+    near = np.zeros(n, bool)
+    if keep_fraction > 0 and small.any():
+        large_v = np.unique(F[~small[comp]])
+        largest = V[np.unique(F[comp == np.argmax(comp_area)])]
+        keep_within = keep_fraction * float(np.linalg.norm(largest.max(axis=0) - largest.min(axis=0)))
+        d, _ = cKDTree(V[large_v]).query(V[F[small[comp]]].reshape(-1, 3), distance_upper_bound=keep_within)
+        close_faces = (d.reshape(-1, 3) < keep_within).any(axis=1)
+        near[np.unique(comp[small[comp]][close_faces])] = True
+    drop = (small & ~near)[comp]
+
+    def describe(parts):
+        out = []
+        for c in parts[np.argsort(-comp_area[parts])]:
+            fc = comp == c
+            vids = np.unique(F[fc])
+            w = area[fc]
+            centers = V[F[fc]].mean(axis=1)
+            centroid = (w @ centers) / w.sum() if w.sum() > 0 else centers.mean(axis=0)  # fc non-empty
+            out.append(DroppedComponent(int(fc.sum()), len(vids), float(comp_area[c]),
                                         tuple(float(x) for x in centroid)))
-    return drop, dropped
+        return out
+    return drop, describe(np.flatnonzero(small & ~near)), describe(np.flatnonzero(near))
 
 
 def compact(V: np.ndarray, F: np.ndarray, face_keep: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

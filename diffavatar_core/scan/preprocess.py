@@ -30,6 +30,7 @@ class ScanOptions:
     max_height: float = 2.5
     merge_tolerance: float = 1e-6
     min_component_fraction: float = 0.01
+    fragment_keep_fraction: float = 0.03
     min_opening_perimeter: float = 0.10
     interior_margin: float = 0.01
     interior_samples: int = 5000
@@ -39,7 +40,7 @@ class ScanOptions:
         def bad(name, why):
             raise ValueError(f"scan options: {name} {why}, got {getattr(self, name)!r}")
         for name in ("min_height", "max_height", "merge_tolerance", "min_component_fraction",
-                     "min_opening_perimeter", "interior_margin"):
+                     "fragment_keep_fraction", "min_opening_perimeter", "interior_margin"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v) or v < 0:
                 bad(name, "must be a non-negative number")
@@ -197,13 +198,21 @@ def clean_scan(raw: RawScan, V0: np.ndarray, opt: ScanOptions, warnings: list | 
         warnings.append(f"removed {n_deg} degenerate and {n_dup} duplicate triangles")
     F = F[~bad]
 
-    # 3. floating fragments
-    drop, dropped = cleaning.small_components(V, F, opt.min_component_fraction)
+    # 3. floating fragments: small parts far from the large ones (near ones are pieces of the
+    # subject cut off by occlusion — a hand beyond a long sleeve's cuff — and are kept)
+    drop, dropped, near = cleaning.components_to_drop(V, F, opt.min_component_fraction, opt.fragment_keep_fraction)
     if dropped:
         listed = "; ".join(d.describe() for d in dropped[:_MAX_LISTED])
         more = f"; and {len(dropped) - _MAX_LISTED} more" if len(dropped) > _MAX_LISTED else ""
         warnings.append(f"dropped {len(dropped)} floating fragment(s) smaller than "
-                        f"{opt.min_component_fraction:g} of the largest part: {listed}{more}")
+                        f"{opt.min_component_fraction:g} of the largest part's area and farther than "
+                        f"{opt.fragment_keep_fraction:g} × its size from the larger parts: {listed}{more}")
+    if near:
+        listed = "; ".join(d.describe() for d in near[:_MAX_LISTED])
+        more = f"; and {len(near) - _MAX_LISTED} more" if len(near) > _MAX_LISTED else ""
+        warnings.append(f"kept {len(near)} small part(s) within {opt.fragment_keep_fraction:g} × the largest "
+                        f"part's size of the larger parts (pieces of the subject cut off by occlusion): "
+                        f"{listed}{more}")
     V, F, kept_v = cleaning.compact(V, F, ~drop)
     if labels is not None:
         labels = labels[kept_v]

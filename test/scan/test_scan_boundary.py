@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from diffavatar_core.scan.boundary import LoopGeometry, boundary_loops, classify_loops, start_at_front
-from diffavatar_core.scan.cleaning import (compact, degenerate_or_duplicate_faces, merge_duplicate_vertices,
+from diffavatar_core.scan.cleaning import (compact, components_to_drop, degenerate_or_duplicate_faces, merge_duplicate_vertices,
                                            small_components)
 
 
@@ -122,6 +122,25 @@ def test_cleaning_helpers():
     np.testing.assert_array_equal(Vc, Vg)
     np.testing.assert_array_equal(Fc, Fg)
     np.testing.assert_array_equal(kept, np.arange(len(Vg)))
+
+
+@pytest.mark.parametrize("scale", [1.0, 100.0])
+def test_a_small_part_near_the_large_ones_is_kept(scale):
+    """A unit square (diagonal √2) and two small triangles: one 2 cm beyond its edge (a piece
+    cut off by occlusion: within 3% of the diagonal, 4.2 cm), one 20 cm away (a floating
+    fragment). With keep_fraction 0.03 only the far one is dropped; the same at 100× the size
+    (the rule is relative, as a scan read in the wrong units needs); without it both are."""
+    Vg, Fg = _grid(2)
+    tri = np.array([[0, 0, 0], [0.01, 0, 0], [0, 0.01, 0]])
+    V = np.concatenate([Vg, tri + [1.02, 0.5, 0], tri + [1.2, 0.5, 0]]) * scale
+    F = np.concatenate([Fg, [[len(Vg), len(Vg) + 1, len(Vg) + 2]], [[len(Vg) + 3, len(Vg) + 4, len(Vg) + 5]]])
+    drop, dropped, near = components_to_drop(V, F, 0.01, 0.03)
+    assert drop.tolist() == [False] * len(Fg) + [False, True]
+    assert len(dropped) == 1 and len(near) == 1
+    np.testing.assert_allclose(near[0].centroid, (np.array([1.02, 0.5, 0]) + 0.01 / 3 * np.array([1, 1, 0])) * scale)
+    np.testing.assert_allclose(dropped[0].centroid, (np.array([1.2, 0.5, 0]) + 0.01 / 3 * np.array([1, 1, 0])) * scale)
+    drop, _ = small_components(V, F, 0.01)
+    assert drop.tolist() == [False] * len(Fg) + [True, True]
 
 
 @pytest.mark.parametrize("hole,sizes", [({(1, 1), (2, 2)}, [4, 4, 16]),    # two holes touching at a corner
