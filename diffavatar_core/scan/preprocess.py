@@ -30,7 +30,7 @@ class ScanOptions:
     max_height: float = 2.5
     merge_tolerance: float = 1e-6
     min_component_fraction: float = 0.01
-    fragment_keep_fraction: float = 0.03
+    fragment_keep_fraction: float = 0.0
     min_opening_perimeter: float = 0.10
     interior_margin: float = 0.01
     interior_samples: int = 5000
@@ -198,15 +198,17 @@ def clean_scan(raw: RawScan, V0: np.ndarray, opt: ScanOptions, warnings: list | 
         warnings.append(f"removed {n_deg} degenerate and {n_dup} duplicate triangles")
     F = F[~bad]
 
-    # 3. floating fragments: small parts far from the large ones (near ones are pieces of the
-    # subject cut off by occlusion — a hand beyond a long sleeve's cuff — and are kept)
+    # 3. floating fragments: small parts (with fragment_keep_fraction > 0 only those far from the
+    # large ones: near ones are pieces of the subject cut off by occlusion, e.g. a hand beyond a
+    # long sleeve's cuff, and are kept)
     drop, dropped, near = cleaning.components_to_drop(V, F, opt.min_component_fraction, opt.fragment_keep_fraction)
     if dropped:
         listed = "; ".join(d.describe() for d in dropped[:_MAX_LISTED])
         more = f"; and {len(dropped) - _MAX_LISTED} more" if len(dropped) > _MAX_LISTED else ""
+        farther = (f" and farther than {opt.fragment_keep_fraction:g} × its size from the larger parts"
+                   if opt.fragment_keep_fraction > 0 else "")
         warnings.append(f"dropped {len(dropped)} floating fragment(s) smaller than "
-                        f"{opt.min_component_fraction:g} of the largest part's area and farther than "
-                        f"{opt.fragment_keep_fraction:g} × its size from the larger parts: {listed}{more}")
+                        f"{opt.min_component_fraction:g} of the largest part's area{farther}: {listed}{more}")
     if near:
         listed = "; ".join(d.describe() for d in near[:_MAX_LISTED])
         more = f"; and {len(near) - _MAX_LISTED} more" if len(near) > _MAX_LISTED else ""

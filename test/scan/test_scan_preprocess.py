@@ -46,22 +46,26 @@ def test_floating_fragments_are_dropped_with_a_warning(data, synthetic):
 
 
 def test_a_body_piece_cut_off_near_the_scan_is_kept(synthetic):
-    """A body-labelled ball (1 cm radius) 3 cm outside the body capsule — a hand cut off where a
-    cuff hides the wrist — is no floating fragment: it is kept with its label and named in its
-    own warning, while the three far fragments are still dropped."""
+    """fragment_keep_fraction 0.03: a body-labelled ball (1 cm radius) 3 cm outside the body
+    capsule — a hand cut off where a cuff hides the wrist — is no floating fragment: it is kept
+    with its label and named in its own warning, while the three far fragments are still
+    dropped. By default (0) it is dropped with them."""
     import trimesh
     ico = trimesh.creation.icosphere(subdivisions=1, radius=0.01)
     centre = np.array([0.14, 0.85, 0.0])                       # capsule radius 0.1 → 3 cm gap
     V = np.concatenate([synthetic.V, np.asarray(ico.vertices) + centre])
     F = np.concatenate([synthetic.F, np.asarray(ico.faces) + len(synthetic.V)])
     L = np.concatenate([synthetic.labels, np.zeros(len(ico.vertices), np.int64)])
-    d = load_scan((V, F, L), units="m")
+    d = load_scan((V, F, L), units="m", options=ScanOptions(fragment_keep_fraction=0.03))
     piece = np.linalg.norm(d.vertices - centre, axis=1) < 0.011
     assert piece.sum() == len(ico.vertices) and np.all(d.labels[piece] == 0)
     assert len(d.vertices) == synthetic.n_main + len(ico.vertices)
     kept = [m for m in d.warnings if m.startswith("kept 1 small part")]
     assert len(kept) == 1 and "11.7 cm² at (0.140, 0.850," in kept[0], d.warnings   # 80 faces of the ball
     assert any(m.startswith("dropped 3 floating fragment(s)") for m in d.warnings)
+    d0 = load_scan((V, F, L), units="m")   # the default (off): dropped with the far ones
+    assert len(d0.vertices) == synthetic.n_main
+    assert any(m.startswith("dropped 4 floating fragment(s)") for m in d0.warnings)
 
 
 def test_garment_region_is_the_shirt(data, synthetic):
