@@ -218,7 +218,7 @@ def _assets_drape(g, co, material, body_vertices, body_faces, opts, cancel):
     more with valley contacts (both faces' planes there; the same planes everywhere else), from
     the same start, and kept when it moves less: the assets then record contact_normals "valley",
     with which a reload (load_result(...).cloth()) holds that equilibrium. The optimization itself
-    keeps the face plane (its fits are better: BENCHMARKS.md, stop 35).
+    keeps the face plane (its fits are better: BENCHMARKS.md, stops 35–36).
 
     Returns (drape, move, contact plane, the face plane's move or None): drape None when no round
     re-solved; move (m) the largest distance from a vertex to an anchor that is not such a force
@@ -322,6 +322,7 @@ def _recover(scan, opts: RecoverOptions, ctl: "_Control", body_model, t0: float)
         return (c,) + _initial_drape(c, opts, ctl.token)
 
     cloth, r, drape_steps = initial_drape(opts.contact_normals)
+    also = ""   # what the valley retry gave, for the error below
     if not r.converged and not r.diverged and opts.contact_normals == "face":
         # face planes that alternate over concave body edges can keep Newton from converging (a
         # benchmark skirt: residual 13.4 after 3 rounds); both faces' planes there end the cycle
@@ -333,10 +334,12 @@ def _recover(scan, opts: RecoverOptions, ctl: "_Control", body_model, t0: float)
             early_warnings.append(f"the initial drape of template '{template_name}' did not converge with face "
                                   f"contact planes ({face_message}); the recovery continues with contact_normals "
                                   f"'valley' (both faces' planes over concave body edges), which the result records")
+        else:
+            also = f"; with valley contacts too: {r_v.message}; residual {r_v.residual:.2e}"
     if not r.converged:
         raise RecoveryError(f"the initial drape of template '{template_name}' on the fitted body did not "
                             f"converge in {drape_steps} XPBD steps (at most {opts.drape_rounds} rounds of drape_steps "
-                            f"{opts.drape_steps}, each then Newton: {r.message}; residual {r.residual:.2e})")
+                            f"{opts.drape_steps}, each then Newton: {r.message}; residual {r.residual:.2e}{also})")
     x_initial = np.array(cloth.x)
     cm = 100.0
     nsamp = int(opts.config.get("metrics", {}).get("chamfer_samples", 20000)) if opts.config else 20000
