@@ -21,7 +21,8 @@ def test_alternating_face_planes_are_reanchored_with_valley_contacts():
     leaves a drape: its face re-anchoring alternates between states 7.3–7.5 mm apart
     (test_contact_plane), so the output drape is the valley re-anchoring's, which converges; a
     Cloth of the recorded plane started there, anchored there, moves less than 0.1 mm, i.e. a
-    reload holds it. The face plane's move is reported beside it."""
+    reload holds it. The face plane's move is reported beside it. Measured: face 7.49 mm, valley
+    0.02 mm."""
     info, cloth, _, (bv, bf) = drape_job.execute(pathlib.Path(tempfile.mkdtemp()), "longsleeve", max_steps=250,
                                                  edge=0.04, contact_normals="face")
     assert info["converged"], info["message"]
@@ -33,7 +34,6 @@ def test_alternating_face_planes_are_reanchored_with_valley_contacts():
     assert opts.contact_normals == "face"
     x, move, planes, face_move = _assets_drape(g, co, ClothMaterial(), bv, bf, opts, None)
     assert planes == "valley"
-    print(f"face plane's move {1e3 * face_move:.3f} mm, valley's {1e3 * move:.4f} mm")
     assert face_move > 1e-3 and move <= SELF_ANCHOR_TOL, (face_move, move)
     reload = _garment_cloth(g, g.rest, x, ClothMaterial(), (bv, bf), contact_normals=planes)
     _, res = reload.refine(anchor=x, residual_tol=opts.residual_tol, refine_iterations=120)

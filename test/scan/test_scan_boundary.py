@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from diffavatar_core.scan.boundary import LoopGeometry, boundary_loops, classify_loops, start_at_front
-from diffavatar_core.scan.cleaning import (compact, components_to_drop, degenerate_or_duplicate_faces, merge_duplicate_vertices,
-                                           small_components)
+from diffavatar_core.scan.cleaning import (compact, components_to_drop, degenerate_or_duplicate_faces,
+                                           merge_duplicate_vertices, small_components)
 
 
 def _grid(n, hole=None):
