@@ -1,10 +1,9 @@
 #include "sim/body_collider.hpp"
 
 #include <algorithm>
-#include <map>
 #include <stdexcept>
-#include <utility>
 
+#include "geometry/edge_triangles.hpp"
 #include "geometry/vertex_normals.hpp"
 
 namespace diffavatar {
@@ -17,12 +16,7 @@ constexpr double kValleyMinSine = 1e-3;
 
 // The triangle across each edge k = (v_k, v_k+1) of F, −1 on a border or a non-manifold edge.
 RowMatX3i edge_neighbours(const RefX3i& F) {
-  std::map<std::pair<int, int>, std::vector<std::pair<int, int>>> edges;
-  for (int t = 0; t < F.rows(); ++t)
-    for (int k = 0; k < 3; ++k) {
-      const int a = F(t, k), b = F(t, (k + 1) % 3);
-      edges[{std::min(a, b), std::max(a, b)}].push_back({t, k});
-    }
+  const auto edges = edge_triangles(F);
   RowMatX3i out = RowMatX3i::Constant(F.rows(), 3, -1);
   for (const auto& [e, tk] : edges)
     if (tk.size() == 2) {

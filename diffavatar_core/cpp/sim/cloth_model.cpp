@@ -2,10 +2,10 @@
 
 #include <algorithm>
 #include <array>
-#include <map>
 #include <stdexcept>
 #include <string>
 
+#include "geometry/edge_triangles.hpp"
 #include "sim/stretch_kernel.hpp"
 
 namespace diffavatar {
@@ -85,15 +85,10 @@ ClothModel build_cloth_model(int nv, const RefX3i& F, const RefX2d& rest, const 
   m.masses_follow_rest = masses_follow_rest;
   set_lumped_masses(m, rest);
   // Hinges: interior edges shared by exactly two consistently oriented triangles.
-  std::map<std::pair<int, int>, std::vector<std::pair<int, int>>> edges;  // (min,max) -> (tri, local k)
-  for (int t = 0; t < F.rows(); ++t)
-    for (int k = 0; k < 3; ++k) {
-      int a = F(t, k), b = F(t, (k + 1) % 3);
-      edges[{std::min(a, b), std::max(a, b)}].push_back({t, k});
-    }
+  const auto edges = edge_triangles(F);  // (min,max) -> (tri, local k)
   std::vector<std::array<int, 4>> hs;
   std::vector<int> hg;
-  for (auto& [key, lst] : edges) {
+  for (const auto& [key, lst] : edges) {
     if (lst.size() != 2) continue;
     auto [t1, k1] = lst[0];
     auto [t2, k2] = lst[1];
