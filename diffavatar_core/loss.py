@@ -13,6 +13,7 @@ simulated garment's vertex positions X (#V×3, m):
 Squared distances are in m²; the reported Chamfer *metric* is separate (metrics.py, in cm)."""
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -90,13 +91,24 @@ class BoundaryLoss:
     grad: np.ndarray          # dL/dX, #V×3
 
 
-def boundary_loss(X, garment_loops: dict, scan_loops: dict) -> BoundaryLoss:
+def boundary_loss(X, garment_loops: dict, scan_loops: dict, scale: float = 0.0) -> BoundaryLoss:
     """Boundary feature matching (paper §4.2.5). garment_loops: name → vertex indices of a closed
     boundary loop of X (in order); scan_loops: name → (K, 3) points along the matching scan loop
     (m). Loops present on one side only are skipped. Per matched loop:
-        ½ [ mean_v d²(x_v, scan polyline) + mean_k d²(s_k, garment polyline) ].
+        ½ [ mean_v ρ(d²(x_v, scan polyline)) + mean_k ρ(d²(s_k, garment polyline)) ],
+    ρ(d²) = d² (scale ≤ 0, the paper's L2) or, robust, s² log(1 + d²/s²) with s = scale (m):
+    the same for d ≪ s, while a point d away pulls with weight 1/(1 + d²/s²) — an opening the
+    drape hangs elsewhere (a cuff slipped over the hand) then no longer drags the pattern.
     The gradient is exact: closest-point parameters are optimal on each fixed segment."""
     X = val.points("X", X)
+    if isinstance(scale, bool) or not isinstance(scale, (int, float)) or not math.isfinite(scale):
+        raise ValueError(f"scale: expected a finite length in m (<= 0: L2), got {scale!r}")
+
+    def rho(d2):   # (value, dρ/d(d²)) per point
+        if scale <= 0:
+            return d2, np.ones_like(d2)
+        return scale ** 2 * np.log1p(d2 / scale ** 2), 1.0 / (1.0 + d2 / scale ** 2)
+
     grad = np.zeros_like(X)
     per_loop = {}
     for name in sorted(set(garment_loops) & set(scan_loops)):
@@ -113,7 +125,10 @@ def boundary_loss(X, garment_loops: dict, scan_loops: dict) -> BoundaryLoss:
         # scan points → garment polyline (gradient through the two segment end vertices)
         seg, t, Cg = _closest_on_polyline(S, G)
         r_s = Cg - S
-        per_loop[name] = 0.5 * ((r_g ** 2).sum(1).mean() + (r_s ** 2).sum(1).mean())
+        v_g, w_g = rho((r_g ** 2).sum(1))
+        v_s, w_s = rho((r_s ** 2).sum(1))
+        per_loop[name] = 0.5 * (v_g.mean() + v_s.mean())
+        r_g, r_s = w_g[:, None] * r_g, w_s[:, None] * r_s
         np.add.at(grad, idx, r_g / len(G))
         np.add.at(grad, idx[seg], (1 - t)[:, None] * r_s / len(S))
         np.add.at(grad, idx[(seg + 1) % len(idx)], t[:, None] * r_s / len(S))

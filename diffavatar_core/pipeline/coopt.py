@@ -183,7 +183,7 @@ class CoOptObjective:
         self.drape_at(rest, bend, bv, stretch)
         x = np.array(self.cloth.x)
         li = interior_loss(x, self.faces, self.samples, self.scan_points)
-        lb = boundary_loss(x, self.loops, self.scan_loops) if self.loops else None
+        lb = boundary_loss(x, self.loops, self.scan_loops, o.boundary_scale) if self.loops else None
         ll = boundary_length_loss(x, self.loops, self.scan_lengths, self.length_tol) if self.loops else None
         ls, gs = self.seam_reg.value_and_grad(rest)
         lc, gc = self.curv_reg.value_and_grad(rest)

@@ -66,6 +66,7 @@ class RecoverOptions:
     body_trim_distance: float = 0.05
     length_measure: str = "raw"
     length_smoothing: float = 0.005
+    boundary_scale: float = 0.0
     fresh_every: int = 5
     measurement_fit_iterations: int = 10
     masses_follow_rest: bool = True
@@ -103,7 +104,7 @@ class RecoverOptions:
         if self.length_measure not in ("raw", "resampled"):
             bad("length_measure", "must be raw or resampled")
         for name in ("length_tolerance_pct", "length_tolerance_min", "sobolev_length", "reevaluate_tol",
-                     "guided_stiffness", "length_smoothing", "output_friction"):
+                     "guided_stiffness", "length_smoothing", "output_friction", "boundary_scale"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
                 bad(name, "must be a number >= 0")

@@ -83,6 +83,43 @@ def test_boundary_loss_gradient_matches_central_differences():
     assert np.all(r.grad[interior] == 0)
 
 
+@pytest.mark.parametrize("scale", [0.005, 0.03])
+def test_robust_boundary_loss_gradient_matches_central_differences(scale):
+    X, F, loop = _sheet(n=7, seed=7)
+    rng = np.random.default_rng(8)
+    theta = np.linspace(0, 2 * np.pi, 40, endpoint=False)
+    scan_loop = np.column_stack([0.15 + 0.17 * np.cos(theta), 0.15 + 0.16 * np.sin(theta),
+                                 0.01 * rng.standard_normal(40)])
+    f = lambda Y: (lambda r: (r.value, r.grad))(loss.boundary_loss(Y, {"hem": loop}, {"hem": scan_loop}, scale=scale))
+    _fd_check(f, X)
+
+
+def test_robust_boundary_loss_is_l2_near_the_scan_and_caps_the_pull_of_a_far_loop():
+    X, F, loop = _sheet()
+    X = X * [1, 1, 0]   # a flat loop: every point's closest point on the z-offset copy is straight above it
+    s = 0.02
+    # residuals ≪ s: ρ(d²) = d² (1 − d²/2s² + …), so the two agree to that order
+    near = X[loop] + [0, 0, 1e-4]
+    l2, rob = (loss.boundary_loss(X, {"hem": loop}, {"hem": near}, scale=sc) for sc in (0.0, s))
+    assert rob.value == pytest.approx(l2.value, rel=1e-4)
+    np.testing.assert_allclose(rob.grad, l2.grad, rtol=1e-4, atol=1e-15)
+    # a loop offset by d along z: every point's pull is the L2 pull × 1/(1 + d²/s²)
+    for d in (0.01, 0.05):
+        far = X[loop] + [0, 0, d]
+        l2, rob = (loss.boundary_loss(X, {"hem": loop}, {"hem": far}, scale=sc) for sc in (0.0, s))
+        np.testing.assert_allclose(rob.grad, l2.grad / (1 + d * d / (s * s)), rtol=1e-9, atol=1e-15)
+        assert rob.value == pytest.approx(s * s * np.log1p(d * d / (s * s)), rel=1e-9)
+    # a rigid motion of garment and scan together leaves it unchanged
+    R = np.linalg.qr(np.random.default_rng(3).standard_normal((3, 3)))[0]
+    far = X[loop] + [0.01, -0.02, 0.03]
+    a = loss.boundary_loss(X, {"hem": loop}, {"hem": far}, scale=s)
+    b = loss.boundary_loss(X @ R.T + 0.4, {"hem": loop}, {"hem": far @ R.T + 0.4}, scale=s)
+    assert b.value == pytest.approx(a.value, rel=1e-10)
+    np.testing.assert_allclose(b.grad, a.grad @ R.T, atol=1e-12)
+    with pytest.raises(ValueError, match="scale"):
+        loss.boundary_loss(X, {"hem": loop}, {"hem": far}, scale=float("nan"))
+
+
 def test_boundary_loss_zero_when_loops_coincide_and_decreases_toward_target():
     X, F, loop = _sheet()
     assert loss.boundary_loss(X, {"hem": loop}, {"hem": X[loop]}).value == pytest.approx(0.0, abs=1e-30)

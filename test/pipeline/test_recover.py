@@ -20,16 +20,18 @@ from diffavatar_core.sim.material import ClothMaterial
 from branch_difference import BRANCH_TOL, differences_on_one_branch
 
 
-@pytest.mark.parametrize("problem", ["skirt_problem", "smooth_skirt_problem"])
-def test_objective_gradient_matches_central_differences(problem, request):
+@pytest.mark.parametrize("problem,boundary_scale", [("skirt_problem", 0.0), ("smooth_skirt_problem", 0.0),
+                                                    ("skirt_problem", 0.01)])
+def test_objective_gradient_matches_central_differences(problem, boundary_scale, request):
     """dφ/dθ of the full objective (boundary + interior + seam + curvature + body data + body
     prior; handles through W, log10 bending, body shape and pose through the skinning Jacobians)
     against central differences at a fixed warm start (the anchor of the equilibrium; the
     centre's own drape where the sides straddle a basin boundary of Newton from it,
     differences_on_one_branch), with either contact plane (the smooth one: measured ≤ 3e-8
-    relative)."""
+    relative), and with the robust boundary term (boundary_scale 1 cm; the target skirt is 8%
+    longer, so its hem lies centimetres away, where the robust pull is a fraction of L2's)."""
     model, p, g, cloth, pts, loops = request.getfixturevalue(problem)
-    opts = RecoverOptions.from_config(residual_tol=1e-8, samples=500)
+    opts = RecoverOptions.from_config(residual_tol=1e-8, samples=500, boundary_scale=boundary_scale)
     rng = np.random.default_rng(0)
     bv = model.pose(p)   # "visible body": upper-body vertices of the true body, 2 mm noise
     body_pts = bv[bv[:, 1] > np.percentile(bv[:, 1], 70)]
@@ -271,6 +273,9 @@ def test_options_from_node_dict_and_config():
         RecoverOptions.from_config(output_drape_sweeps=0)
     with pytest.raises(ValueError, match="length_smoothing"):
         RecoverOptions.from_config(length_smoothing=-0.001)
+    for bad in (-0.01, float("inf")):
+        with pytest.raises(ValueError, match="boundary_scale"):
+            RecoverOptions.from_config(boundary_scale=bad)
     for mu in (-0.1, float("nan"), "0.3"):
         with pytest.raises(ValueError, match="output_friction"):
             RecoverOptions.from_config(output_friction=mu)
