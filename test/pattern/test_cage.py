@@ -35,6 +35,38 @@ def test_circle_hull_vertices_are_handles():
     assert len(cage_handles(B, 45.0)) == 40
 
 
+@pytest.mark.parametrize("outline", [RECT, LSHAPE, np.array([[0, 0], [0.03, 0], [0.03, 0.12], [0, 0.12]], float)],
+                         ids=["rectangle", "l_shape", "placket_3x12cm"])
+def test_round_off_does_not_change_the_handles(outline):
+    """Noise of 1e-13 m (another CPU's round-off) leaves every outline's handles as they were.
+    Before stop 37 the hull's monotone chain took a straight vertical edge's points, whose x
+    then differed by 1e-13 m, in noise's order and kept one from the middle of the edge in place
+    of its end; and its absolute area tolerance let noise make a small panel's edge points
+    corners: the built-in tops' cages had 80–89 handles instead of 75 under test/roundoff.py."""
+    B = _sample(outline, 6)
+    exact = cage_handles(B)
+    assert np.array_equal(B[exact], outline)
+    for seed in range(40):
+        noisy = B + np.random.default_rng(seed).normal(scale=1e-13, size=B.shape)
+        assert np.array_equal(cage_handles(noisy), exact), seed
+
+
+def test_round_off_does_not_change_the_built_in_templates_cages():
+    """Every built-in template's rest shape with test/roundoff.py's noise (1e-13 m) gets the
+    cage of the exact one."""
+    from diffavatar_core.body.model import BodyModel
+    from diffavatar_core.pattern.templates import make_template
+    model = BodyModel.default()
+    lm = model.landmarks(model.zero_params())
+    for n in ("tshirt", "longsleeve", "polo", "dress", "skirt", "pants"):
+        g = make_template(n, landmarks=lm, edge_length=0.04)
+        exact = build_cage(g).handles
+        rest = g.rest.copy()
+        for seed in (1, 2, 3, 4):
+            g.rest[...] = rest + np.random.default_rng(seed).normal(scale=1e-13, size=rest.shape)
+            assert np.array_equal(build_cage(g).handles, exact), (n, seed)
+
+
 def test_threshold_is_configurable():
     # a shallow concave notch (turn 2·atan(0.02/0.2) ≈ 11.4°) is a handle at 10°, not at 15°
     B = np.array([[0, 0], [0.2, 0.02], [0.4, 0], [0.4, 0.3], [0, 0.3]], float)

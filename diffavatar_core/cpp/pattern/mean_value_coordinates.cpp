@@ -11,27 +11,39 @@ namespace {
 
 double cross2(const Vec2& a, const Vec2& b) { return a.x() * b.y() - a.y() * b.x(); }
 
-// Strict corners of the convex hull (Andrew's monotone chain); collinear points excluded.
-std::vector<int> hull_corners(const RefX2d& P, double eps) {
+// Strict corners of the convex hull (Andrew's monotone chain); collinear points — turns below
+// angle_tol (rad, relative: |oa × ob| ≤ angle_tol |oa| |ob|) — excluded. Points sort by x, and
+// those whose x lie within x_tol (m) of the first of their run by y: the chain pops the middle
+// of three collinear points, so a straight vertical edge must come in y order. An exact tie
+// gives that order; x's 1e-13 m apart (round-off) gave noise's order, and the chain popped the
+// edge's real end, a corner, and kept a point from its middle. An absolute area tolerance let
+// round-off make middle points of a small panel's straight edge corners (a 3 × 12 cm placket).
+std::vector<int> hull_corners(const RefX2d& P, double angle_tol, double x_tol) {
   const int n = static_cast<int>(P.rows());
   std::vector<int> idx(n);
   std::iota(idx.begin(), idx.end(), 0);
   std::sort(idx.begin(), idx.end(), [&](int a, int b) {
     return P(a, 0) < P(b, 0) || (P(a, 0) == P(b, 0) && P(a, 1) < P(b, 1));
   });
-  auto turn = [&](int o, int a, int b) {
+  for (int lo = 0; lo < n;) {
+    int hi = lo + 1;
+    while (hi < n && P(idx[hi], 0) - P(idx[lo], 0) <= x_tol) ++hi;
+    std::sort(idx.begin() + lo, idx.begin() + hi, [&](int a, int b) { return P(a, 1) < P(b, 1); });
+    lo = hi;
+  }
+  auto left_turn = [&](int o, int a, int b) {   // strictly left of o→b, beyond round-off
     Vec2 oa = P.row(a).transpose() - P.row(o).transpose();
     Vec2 ob = P.row(b).transpose() - P.row(o).transpose();
-    return cross2(oa, ob);
+    return cross2(oa, ob) > angle_tol * oa.norm() * ob.norm();
   };
   std::vector<int> H(2 * n);
   int k = 0;
   for (int i = 0; i < n; ++i) {
-    while (k >= 2 && turn(H[k - 2], H[k - 1], idx[i]) <= eps) --k;
+    while (k >= 2 && !left_turn(H[k - 2], H[k - 1], idx[i])) --k;
     H[k++] = idx[i];
   }
   for (int i = n - 2, t = k + 1; i >= 0; --i) {
-    while (k >= t && turn(H[k - 2], H[k - 1], idx[i]) <= eps) --k;
+    while (k >= t && !left_turn(H[k - 2], H[k - 1], idx[i])) --k;
     H[k++] = idx[i];
   }
   H.resize(std::max(0, k - 1));
@@ -46,7 +58,7 @@ VecXi cage_handles(const RefX2d& loop, double angle_threshold_deg) {
   const Vec2 lo = loop.colwise().minCoeff().transpose(), hi = loop.colwise().maxCoeff().transpose();
   const double scale = (hi - lo).norm();
   std::vector<char> is_handle(n, 0);
-  for (int i : hull_corners(loop, 1e-12 * scale * scale)) is_handle[i] = 1;
+  for (int i : hull_corners(loop, 1e-9, 1e-9 * scale)) is_handle[i] = 1;
   const double thr = angle_threshold_deg * M_PI / 180.0;
   for (int i = 0; i < n; ++i) {
     const Vec2 ein = loop.row(i).transpose() - loop.row((i + n - 1) % n).transpose();
