@@ -42,7 +42,8 @@ def test_round_off_does_not_change_the_handles(outline):
     Before stop 37 the hull's monotone chain took a straight vertical edge's points, whose x
     then differed by 1e-13 m, in noise's order and kept one from the middle of the edge in place
     of its end; and its absolute area tolerance let noise make a small panel's edge points
-    corners: the built-in tops' cages had 80–89 handles instead of 75 under test/roundoff.py."""
+    corners: the t-shirt's and long sleeve's cages had 80–89 handles instead of 75 under
+    test/roundoff.py (the polo's 106–111 instead of 97)."""
     B = _sample(outline, 6)
     exact = cage_handles(B)
     assert np.array_equal(B[exact], outline)
