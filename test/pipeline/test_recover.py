@@ -307,6 +307,27 @@ def test_a_recovery_whose_start_does_not_drape_warns_and_returns_the_template(mo
     assert abs(r.metrics["pattern_area_m2"] / r.metrics["template_area_m2"] - 1) < 1e-9   # the template's pattern
 
 
+def test_a_result_farther_from_the_scan_than_the_template_says_so(monkeypatch):
+    """Fault injected: the final drape's Chamfer distance is measured 1 cm larger than it is (as
+    benchmark dress 100 under round-off seed 2 with boundary_scale 0.01 really ended: 0.816 cm
+    against the template's 0.550). The result warns with both distances; unperturbed it does not."""
+    from diffavatar_core.pipeline import recovery as rec
+    r = recover(SAMPLE, {"units": "cm", "iterations": 2})
+    assert r.metrics["chamfer_final_cm"] < r.metrics["chamfer_initial_cm"]
+    assert not any("farther from the scan" in w for w in r.warnings), r.warnings
+    real, calls = rec.chamfer_meshes, []
+
+    def final_worse(*args, **kwargs):
+        calls.append(1)
+        return real(*args, **kwargs) + (0.01 if len(calls) == 2 else 0.0)   # m; the 2nd call is the final drape's
+    monkeypatch.setattr(rec, "chamfer_meshes", final_worse)
+    r = recover(SAMPLE, {"units": "cm", "iterations": 2})
+    assert r.metrics["chamfer_final_cm"] > r.metrics["chamfer_initial_cm"]
+    msg = f"farther from the scan (Chamfer {r.metrics['chamfer_final_cm']:.3f} cm) than the template's initial " \
+          f"drape ({r.metrics['chamfer_initial_cm']:.3f} cm)"
+    assert any(msg in w for w in r.warnings), r.warnings
+
+
 def test_an_initial_drape_that_face_planes_do_not_converge_continues_with_valley_contacts(monkeypatch, tmp_path):
     """Fault injected: the initial drape with face contact planes reports no convergence (as
     benchmark skirt 103's did, Newton residual 13.4: face planes alternating over concave body
