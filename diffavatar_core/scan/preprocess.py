@@ -22,6 +22,12 @@ from .loading import RawScan
 _MAX_LISTED = 10
 
 
+def _listed(parts) -> str:
+    """The first _MAX_LISTED parts described (cleaning.DroppedComponent), and how many more."""
+    more = f"; and {len(parts) - _MAX_LISTED} more" if len(parts) > _MAX_LISTED else ""
+    return "; ".join(d.describe() for d in parts[:_MAX_LISTED]) + more
+
+
 @dataclass(frozen=True)
 class ScanOptions:
     """Preprocessing parameters (defaults: the `scan:` section of config/diffavatar.yaml).
@@ -203,18 +209,14 @@ def clean_scan(raw: RawScan, V0: np.ndarray, opt: ScanOptions, warnings: list | 
     # long sleeve's cuff, and are kept)
     drop, dropped, near = cleaning.components_to_drop(V, F, opt.min_component_fraction, opt.fragment_keep_fraction)
     if dropped:
-        listed = "; ".join(d.describe() for d in dropped[:_MAX_LISTED])
-        more = f"; and {len(dropped) - _MAX_LISTED} more" if len(dropped) > _MAX_LISTED else ""
         farther = (f" and farther than {opt.fragment_keep_fraction:g} × its size from the larger parts"
                    if opt.fragment_keep_fraction > 0 else "")
         warnings.append(f"dropped {len(dropped)} floating fragment(s) smaller than "
-                        f"{opt.min_component_fraction:g} of the largest part's area{farther}: {listed}{more}")
+                        f"{opt.min_component_fraction:g} of the largest part's area{farther}: {_listed(dropped)}")
     if near:
-        listed = "; ".join(d.describe() for d in near[:_MAX_LISTED])
-        more = f"; and {len(near) - _MAX_LISTED} more" if len(near) > _MAX_LISTED else ""
         warnings.append(f"kept {len(near)} small part(s) within {opt.fragment_keep_fraction:g} × the largest "
                         f"part's size of the larger parts (pieces of the subject cut off by occlusion): "
-                        f"{listed}{more}")
+                        f"{_listed(near)}")
     V, F, kept_v = cleaning.compact(V, F, ~drop)
     if labels is not None:
         labels = labels[kept_v]
@@ -247,8 +249,7 @@ def preprocess_checked(checked: CheckedScan) -> ScanData:
     gidx = np.flatnonzero(gface)
     gdrop, gdropped = cleaning.small_components(V, F[gidx], opt.min_component_fraction)
     if gdropped:
-        listed = "; ".join(d.describe() for d in gdropped[:_MAX_LISTED])
-        warnings.append(f"dropped {len(gdropped)} small island(s) of the garment region: {listed}")
+        warnings.append(f"dropped {len(gdropped)} small island(s) of the garment region: {_listed(gdropped)}")
         gface[gidx[gdrop]] = False
     gvert = np.zeros(len(V), bool)
     gvert[F[gface].ravel()] = True
