@@ -148,6 +148,7 @@ def run_case(case, variant, iterations, output_edge=0.0, friction=None, contact_
         "warnings": [w for w in r.warnings if "fragment" not in w],
         "iterations": r.iterations, "stopped": m["stopped"],
         "fresh_drapes_kept": m.get("fresh_drapes_kept"), "guided_drapes_kept": m.get("guided_drapes_kept"),
+        "initial_drapes_kept": m.get("initial_drapes_kept"),
         "output_drape": m.get("output_drape"),
         "measurement_fit": m.get("measurement_fit"),
     }

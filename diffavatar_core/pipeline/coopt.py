@@ -5,8 +5,8 @@
 optionally log10 stretch compliances (warp, weft, shear; one set), body shape ν and pose ψ}.
 Each evaluation re-drapes from the previous equilibrium (Newton from the warm start; a full
 XPBD + Newton drape only if that fails; every `fresh_every` iterations also a drape from the
-template layout and a scan-guided drape (guided_drape.py), each kept as the warm
-start when its φ is lower), evaluates
+template layout, a re-drape from the template's initial drape and a scan-guided drape
+(guided_drape.py), each kept as the warm start when its φ is lower), evaluates
     φ = ρ L_boundary + σ L_interior + α L_seam(x̄) + β L_curvature(x̄)
         + δ L_body(ν, ψ) + γ |(ν, ψ) − (ν, ψ)_fit|²,
 (L_body: the scan's visible body points to the posed body surface, full scans only — without it
@@ -51,6 +51,7 @@ class CoOptResult:
     measurement_fit: object = None  # measurement_fit.MeasurementFitResult of the first stage, or None
     stretch_compliance: np.ndarray | None = None  # (G, 3) m/N [warp, weft, shear] of the returned drape
     stop_reason: str = ""        # stopped 'invalid_start': why the stage's start did not re-drape
+    initial_kept: int = 0        # re-drapes from the template's initial drape (try_initial) that became the warm start
 
 
 def seam_mismatch_pct(g, rest) -> float:
@@ -99,10 +100,12 @@ class CoOptObjective:
         self.use_body = bool(opts.optimize_body and body_model is not None and body_params is not None)
         self.model, self.p0 = body_model, (body_params.copy() if body_params is not None else None)
         self.x_warm = np.array(cloth.x)   # start and anchor of every re-drape: the current iterate's drape
+        self.x_initial = self.x_warm.copy()   # the template's initial drape (try_initial)
         self.x_last = self.x_warm
         self._undo = []          # warm starts before the last commits (revert)
         self.last_fresh = None   # (φ warm, φ fresh) of the last try_fresh
         self.last_guided = None  # (φ warm, φ guided) of the last try_guided
+        self.last_initial = None  # (φ warm, φ from the initial drape) of the last try_initial
         bp = np.zeros((0, 3)) if body_points is None else np.asarray(body_points, np.float64).reshape(-1, 3)
         if len(bp) > opts.samples:   # a fixed, reproducible subset
             bp = bp[np.random.default_rng(0).choice(len(bp), opts.samples, replace=False)]
@@ -279,6 +282,26 @@ class CoOptObjective:
         self.last_fresh = (v_warm, v_fresh)
         return kept
 
+    def try_initial(self, params) -> bool:
+        """As try_fresh, with the candidate re-draped at `params` from the template's initial drape
+        (the cloth's state when this objective was made; Cloth.reequilibrate): the current
+        parameters in the initial fold state, the one the Chamfer ratio is measured against. A
+        warm-started re-drape can switch branch — one Newton solve moved the benchmark dress
+        (round-off seed 2, boundary_scale 1 cm) 65 mm into a fold state twice as far from the scan —
+        and later re-drapes start from there; this candidate is always one re-drape away from the
+        initial state."""
+        rest, bend, bp = self.unpack(params)
+        bv = self.model.pose(bp) if self.use_body else None
+        stretch, o = self.stretch(params), self.opts
+
+        def from_initial(_):
+            self.cloth.set_control(rest=rest, bend_stiffness=bend, body_vertices=bv, stretch_compliance=stretch)
+            self.cloth.reequilibrate(self.x_initial, o.residual_tol, max_steps=o.drape_steps,
+                                     iterations=o.drape_iterations, cancel=self.cancel)
+        v_warm, v_init, kept = self._try_candidate(params, from_initial)
+        self.last_initial = (v_warm, v_init)
+        return kept
+
     def try_guided(self, params) -> bool:
         """As try_fresh, with a scan-guided drape (guided_drape.py: pulled toward the scan with
         springs of opts.guided_stiffness, then released) from the current warm start's drape as
@@ -329,7 +352,7 @@ def co_optimize(cloth, garment, scan_points, scan_loops: dict, opts: RecoverOpti
     obj = CoOptObjective(cloth, garment, scan_points, scan_loops, opts, cage, body_model, body_params, cancel,
                          body_points, scan_mesh)
     params = obj.initial_params()
-    history, fit, base, stop_reason = [], None, 0, ""
+    history, fit, base, stop_reason, initial_used = [], None, 0, "", []
     if opts.iterations and opts.measurement_fit_iterations and measurement_map is not None:
         def report_fit(h):
             history.append({**h, "stage": "measurements"})
@@ -355,8 +378,8 @@ def co_optimize(cloth, garment, scan_points, scan_loops: dict, opts: RecoverOpti
         # stages: the optimization restarts (L-BFGS memory cleared) at every cut —
         # bending_after / body_after: the bending stiffness / the body held until then (a skirt cut
         # too large can otherwise hide its extra cloth in softer folds; a body can absorb a misfit
-        # of the pattern); fresh_every N: every N iterations the lower-φ of the warm, a fresh and
-        # a scan-guided drape of the current parameters becomes the warm start
+        # of the pattern); fresh_every N: every N iterations the lowest-φ of the warm, a fresh, a
+        # from-the-initial-drape and a scan-guided drape of the current parameters becomes the warm start
         n_it, fresh_every = opts.iterations, opts.fresh_every
         bend_after = opts.bending_after if ("log_bend" in params or "log_stretch" in params) else 0
         body_after = opts.body_after if obj.use_body else 0
@@ -365,7 +388,7 @@ def co_optimize(cloth, garment, scan_points, scan_loops: dict, opts: RecoverOpti
             cuts |= set(range(fresh_every, n_it, fresh_every))
         cuts = sorted(cuts)
         it, rej, stopped = 0, 0, "max_iterations"
-        fresh_used, guided_used = [], []
+        fresh_used, guided_used, initial_used = [], [], []
         pre = obj.precondition() if opts.optimizer == "lbfgs" else {}
 
         def run_stage(evaluate, free, lr, n, report):
@@ -389,6 +412,7 @@ def co_optimize(cloth, garment, scan_points, scan_loops: dict, opts: RecoverOpti
                 held.update(shape=params["shape"], pose=params["pose"])
             if fresh_every and 0 < start < n_it and start % fresh_every == 0:
                 fresh_used.append(obj.try_fresh(params))
+                initial_used.append(obj.try_initial(params))
                 guided_used.append(obj.try_guided(params))
             free = {g: v for g, v in params.items() if g not in held}
             lr = {g: v for g, v in obj.step_sizes().items() if g not in held}
@@ -419,8 +443,10 @@ def co_optimize(cloth, garment, scan_points, scan_loops: dict, opts: RecoverOpti
             if stopped == "cancelled":
                 break
         best = params
-        if stopped not in ("cancelled", "invalid_start"):
-            guided_used.append(obj.try_guided(best))   # the returned drape: the fold state nearer the scan
+        if stopped != "cancelled":   # the returned drape: the fold state nearer the scan (after
+            # invalid_start too: the iterate's own drape did not re-drape, one from the initial may)
+            initial_used.append(obj.try_initial(best))
+            guided_used.append(obj.try_guided(best))
         kept, gkept = int(sum(fresh_used)), int(sum(guided_used))
     rest, bend, bp = obj.unpack(best)
     bv = body_model.pose(bp) if obj.use_body else None
@@ -432,4 +458,4 @@ def co_optimize(cloth, garment, scan_points, scan_loops: dict, opts: RecoverOpti
         cloth.reset(obj.x_warm)
     return CoOptResult(rest, bend, bp if obj.use_body else body_params, bv, np.array(cloth.x), history, it, rej,
                        stopped, kept, gkept, fit, np.asarray(cloth.control.stretch_compliance).reshape(-1, 3).copy(),
-                       stop_reason)
+                       stop_reason, initial_kept=int(sum(initial_used)))

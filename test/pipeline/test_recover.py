@@ -468,6 +468,34 @@ def test_try_fresh_keeps_the_lower_loss_warm_start(skirt_problem):
     assert np.array_equal(obj.x_warm, obj.x_last if used else x_before)
 
 
+def test_try_initial_redrapes_from_the_template_drape(skirt_problem):
+    """try_initial evaluates φ from the current warm start and from a re-drape of the same
+    parameters that starts at the template's initial drape, and keeps the lower: the candidate does
+    not depend on where the warm starts have wandered (the same φ from three of them), and a warm
+    start left in a worse state — a 5% smaller skirt's drape, which the template's own parameters
+    re-drape from into a state farther from the scan — is replaced by it."""
+    model, p, g, cloth, pts, loops = skirt_problem
+    x_init = np.array(cloth.x)
+    obj = CoOptObjective(cloth, g, pts, loops, RecoverOptions.from_config(residual_tol=1e-8, samples=200),
+                         cage=build_cage(g))
+    theta0 = obj.initial_params()
+    candidates = []
+    for f in (1.04, 1.08, 0.95):
+        cloth.reset(x_init)
+        obj.x_warm = x_init.copy()
+        obj(dict(theta0, handles=theta0["handles"] * f))
+        obj.commit()   # the warm start: that skirt's drape
+        x_before = np.array(obj.x_warm)
+        assert np.abs(x_before - x_init).max() > 0.02
+        used = obj.try_initial(theta0)
+        v_warm, v_init = obj.last_initial
+        assert np.isfinite(v_warm) and np.isfinite(v_init) and used == (v_init < v_warm)
+        assert np.array_equal(obj.x_warm, obj.x_last if used else x_before)
+        candidates.append(v_init)
+    assert candidates[0] == candidates[1] == candidates[2]
+    assert used and v_warm > 1.2 * v_init, (v_warm, v_init)   # the 0.95 skirt's state is the worse one
+
+
 def test_body_after_holds_the_body_first(skirt_problem):
     """body_after N: the body's shape and pose stay at their scan fit for the first N iterations
     while the pattern moves; from then on they are co-optimized."""
