@@ -17,6 +17,11 @@ fixed_masses (the template's masses throughout); stretch (the stretch compliance
 `stretch: garment`; truths with other compliances by --compliance-scales); robust_boundary (the
 boundary term robust beyond 1 cm, boundary_scale 0.01 m).
 
+The floor: each case's truth.chamfer_truth_cm is the truth's own drape against the scan (the scan's
+noise, resampling and holes; SyntheticCase.truth_chamfer_cm), so each variant's chamfer_ratio_floor
+(that over chamfer_initial_cm) is the lowest Chamfer ratio any recovery can reach on the case, and
+chamfer_gap_closed = (initial − final) / (initial − truth) the part of the reachable distance removed.
+
 A case whose recovery fails (RecoveryError: e.g. the initial drape did not converge) is reported with
 its message under the variant and counted in "failed"; the means are over the others.
 
@@ -124,7 +129,9 @@ def options_for(variant, iterations, output_edge=0.0, friction=None, contact_nor
     return o
 
 
-def run_case(case, variant, iterations, output_edge=0.0, friction=None, contact_normals=None, paper_optimizer=False):
+def run_case(case, variant, iterations, output_edge=0.0, friction=None, contact_normals=None, paper_optimizer=False,
+             truth_cm=float("nan")):
+    """One recovery of `case`; truth_cm: the truth's own drape's Chamfer to the scan (the case's floor)."""
     t0, c0 = time.perf_counter(), time.process_time()
     r = recover((case.scan_vertices, case.scan_faces, case.scan_labels),
                 options_for(variant, iterations, output_edge, friction, contact_normals, paper_optimizer))
@@ -133,6 +140,10 @@ def run_case(case, variant, iterations, output_edge=0.0, friction=None, contact_
     return {
         "chamfer_initial_cm": m["chamfer_initial_cm"], "chamfer_final_cm": m["chamfer_final_cm"],
         "chamfer_ratio": m["chamfer_final_cm"] / m["chamfer_initial_cm"],
+        # the lowest ratio any recovery can reach: the truth's own drape, fold for fold (scan noise only)
+        "chamfer_ratio_floor": truth_cm / m["chamfer_initial_cm"],
+        # the part of the template's distance beyond that floor the recovery removed (1 = the truth's drape)
+        "chamfer_gap_closed": (m["chamfer_initial_cm"] - m["chamfer_final_cm"]) / (m["chamfer_initial_cm"] - truth_cm),
         # a fine output (--output-edge): the optimized coarse drape's Chamfer ratio it came from
         "chamfer_ratio_optimized": m.get("chamfer_optimized_cm", m["chamfer_final_cm"]) / m["chamfer_initial_cm"],
         "pattern_area_error_pct": 100 * abs(r.garment.total_area() - area_gt) / area_gt,
@@ -211,12 +222,14 @@ def main():
             out.setdefault("skipped", []).append(skipped)
             print(json.dumps(skipped), flush=True)
             continue
+        truth_cm = case.truth_chamfer_cm(options_for("full", args.iterations, contact_normals=args.contact_normals))
         entry = {"template": tpl, "seed": 100 + k, "truth": {"measurements_m": case.measurements,
-                                                             "bend_stiffness_Nm": bend, "compliance_scale": scale}}
+                                                             "bend_stiffness_Nm": bend, "compliance_scale": scale,
+                                                             "chamfer_truth_cm": truth_cm}}
         for v in variants:
             try:
                 entry[v] = run_case(case, v, args.iterations, args.output_edge, args.friction, args.contact_normals,
-                                    args.paper_optimizer)
+                                    args.paper_optimizer, truth_cm)
             except RecoveryError as exc:   # the pipeline failed on this case: a result to count, not the run's end
                 entry[v] = {"failed": str(exc)}
                 failed[v] += 1
@@ -224,7 +237,7 @@ def main():
             per_variant[v].append(entry[v])
         out["cases"].append(entry)
         print(json.dumps(entry), flush=True)
-    keys = ("chamfer_ratio", "chamfer_ratio_optimized", "chamfer_final_cm", "pattern_area_error_pct", "pattern_edge_error_cm",
+    keys = ("chamfer_ratio", "chamfer_ratio_floor", "chamfer_gap_closed", "chamfer_ratio_optimized", "chamfer_final_cm", "pattern_area_error_pct", "pattern_edge_error_cm",
             "bending_log10_error", "stretch_log10_error", "body_vertex_error_cm", "mesh_quality_min", "wall_s", "cpu_s", "iterations",
             "garment_vertices")
     out["mean"] = {v: {k: float(np.nanmean([r[k] for r in rs])) if rs else float("nan") for k in keys}

@@ -20,8 +20,9 @@ from diffavatar_core.body import BodyModel
 from diffavatar_core.metrics import chamfer_meshes
 from diffavatar_core.pattern.cage import build_cage, cage_handles
 from diffavatar_core.pattern.templates import make_template
+from diffavatar_core.pipeline import RecoverOptions
+from diffavatar_core.pipeline.recovery import scan_for_recovery
 from diffavatar_core.pipeline.synthetic import make_case
-from diffavatar_core.scan import load_scan
 from diffavatar_core.sim.cloth import CONTACT_NORMALS, Cloth
 from diffavatar_core.sim.material import ClothMaterial
 
@@ -59,8 +60,9 @@ def floor_case(template: str, seed: int, bend: float, args) -> dict:
     g = make_template(template, landmarks=BodyModel.default().landmarks(case.body_params), edge_length=0.04)
     cage = build_cage(g)
     rest_truth = cage.rest(truth_handles(g, cage, case.garment))
-    scan = load_scan((case.scan_vertices, case.scan_faces, case.scan_labels), units=case.units, up=case.up)
-    Vs, Fs = scan.garment_mesh()
+    # the scan as the recovery sees it (bench/recover.py's chamfer_truth_cm is truth_drape_cm here)
+    Vs, Fs = scan_for_recovery((case.scan_vertices, case.scan_faces, case.scan_labels),
+                               RecoverOptions.from_config(units=case.units, up=case.up)).garment_mesh()
     cm = lambda x, F: 100 * chamfer_meshes(np.asarray(x), F, Vs, Fs, samples=20000)
 
     def cloth(rest):

@@ -266,14 +266,20 @@ def recover(scan, options=None, run_control=None, *, progress=None, cancel=None,
         ctl.close()
 
 
+def scan_for_recovery(scan, opts: RecoverOptions) -> ScanData:
+    """The scan as the recovery sees it (stage `preprocess`): a ScanData as given, anything else
+    through load_scan with the options' units, up axis, label, garment type and scan cleaning.
+    Its garment_mesh() (m, core frame) is what chamfer_*_cm are measured against."""
+    if isinstance(scan, ScanData):
+        return scan
+    from ..scan.preprocess import ScanOptions
+    return load_scan(scan, units=opts.units, up=opts.up, label=opts.label, garment_type=opts.garment_type,
+                     options=ScanOptions.from_config(opts.config) if opts.config else None)
+
+
 def _recover(scan, opts: RecoverOptions, ctl: "_Control", body_model, t0: float) -> RecoveryResult:
     ctl.report("preprocess")
-    if isinstance(scan, ScanData):
-        data = scan
-    else:
-        from ..scan.preprocess import ScanOptions
-        data = load_scan(scan, units=opts.units, up=opts.up, label=opts.label, garment_type=opts.garment_type,
-                         options=ScanOptions.from_config(opts.config) if opts.config else None)
+    data = scan_for_recovery(scan, opts)
     Vg_scan, Fg_scan = data.garment_mesh()
     if len(data.interior_points) < 10:
         raise RecoveryError(f"the garment region has only {len(data.interior_points)} interior samples; "
@@ -455,4 +461,4 @@ def _recover(scan, opts: RecoverOptions, ctl: "_Control", body_model, t0: float)
     return result
 
 
-__all__ = ["recover", "RecoveryError", "select_template", "sleeve_reach", "STAGES", "ScanError"]
+__all__ = ["recover", "scan_for_recovery", "RecoveryError", "select_template", "sleeve_reach", "STAGES", "ScanError"]

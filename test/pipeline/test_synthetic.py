@@ -1,11 +1,13 @@
 """Synthetic ground-truth cases (pipeline/synthetic.py), the benchmark's and the tests' scans:
 what each option of make_case changes in the truth."""
+import dataclasses
+
 import numpy as np
 import pytest
 
 from diffavatar_core.body import BodyModel
 from diffavatar_core.metrics import chamfer_meshes
-from diffavatar_core.pipeline.synthetic import make_case
+from diffavatar_core.pipeline.synthetic import GARMENT_LABEL, make_case, scan_like, to_scan_frame
 from diffavatar_core.scan.frame import ScanTransform
 from edge_strain import mean_edge_strain
 
@@ -43,6 +45,29 @@ def test_a_softer_ground_truth_hangs_lower():
     assert strains[1] > 1.05 * strains[0] and strains[2] > 1.05 * strains[1], strains
     assert heights[0] > heights[1] + 0.001 and heights[1] > heights[2] + 0.005, heights
     assert [c.truth_json()["compliance_scale"] for c in cases] == [0.5, 1.0, 3.0]
+
+
+def test_the_truth_floor_is_the_scans_noise():
+    """SyntheticCase.truth_chamfer_cm — the truth's own drape against its scan, the lowest Chamfer
+    distance a recovery can reach — is what the scan's making adds: scans of one drape, welded and
+    midpoint-subdivided (the same surface) with normal noise σ = 0, 2, 4 mm and floating fragments
+    (dropped by the recovery's cleaning), no holes. Noise-free the floor is nil; with noise it
+    grows as σ, at a fraction of σ set by the geometry of a displaced surface: a scan point lies
+    |n| off the truth (mean σ√(2/π) ≈ 0.80σ), a truth point nearer the noisy surface than that."""
+    case = make_case("skirt", seed=3, edge=0.07)
+    floors = []
+    for sigma in (0.0, 0.002, 0.004):
+        V, F, L = scan_like(case.garment_x, case.garment.faces, case.body_vertices, case.body_faces,
+                            GARMENT_LABEL["skirt"], np.random.default_rng(7), noise=sigma, holes=0,
+                            fragments=3, seams=case.garment.seams)
+        noisy = dataclasses.replace(case, scan_vertices=to_scan_frame(V, case.units, case.up), scan_faces=F,
+                                    scan_labels=L)
+        floors.append(noisy.truth_chamfer_cm())
+    s0, s2, s4 = floors
+    assert s0 < 0.002, floors                        # cm: the same surface (fragments dropped, seams welded)
+    assert 0.3 * 0.2 < s2 < 0.8 * 0.2, floors        # σ = 0.2 cm
+    assert 1.8 < s4 / s2 < 2.2, floors               # linear in σ
+    assert case.truth_chamfer_cm() > s2 - 0.02, (case.truth_chamfer_cm(), floors)   # + holes: no lower
 
 
 def test_bad_truth_options_are_named():
