@@ -230,8 +230,8 @@ def _skirt_spec(lm: BodyLandmarks, m: SkirtMeasurements) -> PatternSpec:
 
 
 def _torso_section(lm: BodyLandmarks, gap: float, waist: float, hip: float):
-    """y → (centre z, half width, half depth) m of an ellipse around the torso between the
-    waist and the hips (constant below the hips) for a garment of these girths (m): half width
+    """y → (centre x, centre z, half width, half depth) m of an ellipse around the torso between the
+    waist and the hips (centred on the body's hip → waist centres, wherever the body stands) (constant below the hips) for a garment of these girths (m): half width
     from the body's girth (torso_radius) plus gap, depth matching the garment's girth but at
     least 0.85 × the width (deep enough for the seat and the belly)."""
     hip_y, waist_y = lm.hip_center[1], lm.waist_center[1]
@@ -242,8 +242,9 @@ def _torso_section(lm: BodyLandmarks, gap: float, waist: float, hip: float):
         a = (1 - t) * hip_half + t * waist_half + gap
         girth = (1 - t) * hip + t * waist
         b = np.array([_ellipse_depth(float(ai), float(gi)) for ai, gi in zip(np.atleast_1d(a), np.atleast_1d(girth))])
+        cx = (1 - t) * lm.hip_center[0] + t * lm.waist_center[0]
         cz = (1 - t) * lm.hip_center[2] + t * lm.waist_center[2]
-        return cz, a, np.maximum(b, 0.85 * a)
+        return cx, cz, a, np.maximum(b, 0.85 * a)
     return torso
 
 
@@ -266,14 +267,14 @@ class HalfWrap:
         y = self.hem_y + v
         u0, u1 = _panel_span(self.panel, v)
         s = np.clip((u - u0) / np.maximum(u1 - u0, 1e-9), 0.0, 1.0)
-        cz, a, b = self.torso(y)
+        cx, cz, a, b = self.torso(y)
         girth = sum(np.subtract(*_panel_span(p, v)[::-1]) for p in self.pair)
         r = girth / (2 * np.pi)
         below = y < self.hip_y
         a = np.where(below, np.maximum(a, r), a)
         b = np.where(below, np.maximum(b, r), b)
         psi = -0.5 * np.pi + np.pi * s
-        return np.column_stack([self.front * a * np.sin(psi), y, cz + self.front * b * np.cos(psi)])
+        return np.column_stack([cx + self.front * a * np.sin(psi), y, cz + self.front * b * np.cos(psi)])
 
 
 @dataclass
@@ -321,7 +322,7 @@ class LegPlacement:
     crotch_y: float
     leg_axis: object            # y → (x, z) of the leg axis, m (arrays)
     leg_radius: object          # y → m
-    torso: object               # y → (centre z, half width, half depth), m
+    torso: object               # y → (centre x, centre z, half width, half depth), m
     mirrored: bool = False      # pattern u runs from the side towards the centre
     blend: float = 0.06
 
@@ -338,9 +339,9 @@ class LegPlacement:
         phi = -np.pi / 2 + np.pi * s
         leg = np.column_stack([ax + self.side * R * np.sin(phi), y, az + self.front * R * np.cos(phi)])
         # torso: from the centre line (ψ = 0) to the side (ψ = π/2)
-        cz, a, b = self.torso(y)
+        cx, cz, a, b = self.torso(y)
         psi = 0.5 * np.pi * s
-        tor = np.column_stack([self.side * a * np.sin(psi), y, cz + self.front * b * np.cos(psi)])
+        tor = np.column_stack([cx + self.side * a * np.sin(psi), y, cz + self.front * b * np.cos(psi)])
         w = np.clip((y - self.crotch_y) / self.blend, 0.0, 1.0)[:, None]
         w = w * w * (3 - 2 * w)
         return (1 - w) * leg + w * tor

@@ -69,6 +69,25 @@ def test_placement_is_sewable_and_outside_the_body(garment):
         assert np.median(dist) > 0.04
 
 
+def test_templates_stand_where_the_body_stands(garment):
+    """Every template is laid out around the body's landmarks wherever the body stands: for the
+    same body moved by t (a scan off its rig's origin; the body fit's translation), the 3D layout
+    moves by t — its centroid and bounding box (the triangulation may differ at round-off). The
+    skirt and the trousers' torso part were centred on x = 0 (a body fitted 0.34 m off along X got
+    a skirt beside it, which fell 12 m and was returned as a result)."""
+    from diffavatar_core.body import BodyModel
+    name, _ = garment
+    model = BodyModel.default()
+    p, q = model.zero_params(), model.zero_params()
+    t = np.array([0.31, -0.07, 0.12])
+    q.translation[:] = t
+    a = make_template(name, landmarks=model.landmarks(p), edge_length=0.05)
+    b = make_template(name, landmarks=model.landmarks(q), edge_length=0.05)
+    np.testing.assert_allclose(b.x0.mean(axis=0), a.x0.mean(axis=0) + t, atol=1e-4)
+    np.testing.assert_allclose(b.x0.min(axis=0), a.x0.min(axis=0) + t, atol=1e-4)
+    np.testing.assert_allclose(b.x0.max(axis=0), a.x0.max(axis=0) + t, atol=1e-4)
+
+
 def test_measurements_change_the_pattern():
     short = template_spec("tshirt", length=0.6).panels[0]
     long_ = template_spec("tshirt", length=0.8).panels[0]
