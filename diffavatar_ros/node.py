@@ -322,6 +322,11 @@ class DiffAvatarNode(Node):
             return self._runner(job.payload["scan"], options, RunControl(job.cancel, report))
         except ScanError as err:  # input problems found while preprocessing in the job
             raise JobError(err.code, str(err)) from None
+        except ValueError as err:  # the recovery's named problems (no drape on the body, ...): not bugs
+            from diffavatar_core.pipeline.recovery import RecoveryError
+            if isinstance(err, RecoveryError):
+                raise JobError(err.code, str(err)) from None
+            raise
 
     def _publish_progress(self, job, stage, iteration, max_iterations, loss, terms, t0=None):
         elapsed = time.monotonic() - (t0 if t0 is not None else job.submitted)

@@ -25,7 +25,7 @@ from .. import _core
 from .._validate import is_cancelled
 from ..body import BodyModel
 from ..body.fitting import fit_body
-from ..metrics import chamfer_meshes, mesh_quality
+from ..metrics import chamfer_meshes, mesh_quality, surface_distances
 from ..pattern.cage import build_cage
 from ..pattern.export import pattern_assets
 from ..pattern.garment import Garment
@@ -35,6 +35,7 @@ from ..scan.errors import ScanError
 from ..sim.cloth import Cloth
 from ..sim.material import ClothMaterial
 from .coopt import co_optimize, seam_mismatch_pct
+from .facing import FACING_TURN, facing_yaw, turned_params, yaw_rotation
 from .measurement_fit import MeasurementMap
 from .options import RecoverOptions
 from .refine import settle_carried, transfer_pattern, transfer_positions
@@ -47,11 +48,18 @@ LONG_SLEEVE_REACH = 0.95    # sleeve_reach above this: long sleeves (between the
 CANCEL_POLL_S = 0.05        # s: how often a threading.Event given as `cancel` is looked at
 SELF_ANCHOR_TOL = 1e-4      # m: the output drape re-anchored at itself until it moves less (Cloth.self_anchor)
 MIN_BODY_FRACTION = 0.2    # of the scan's vertices, for a body fit to the body-labelled points
+SUPPORT_GAP = 0.01          # m: a drape with no vertex this near the body does not rest on it (× thickness 4 mm: 2.5)
 
 
 class RecoveryError(ValueError):
-    """The recovery cannot proceed with this input (a clear message says why)."""
-    code = "INVALID_SCAN"
+    """The recovery cannot proceed with this input (a clear message says why). `code` names the
+    problem as the ROS interface spells it (AvatarAssets.ERROR_<code>), as ScanError's do:
+    SIMULATION_FAILED (the default: no drape of the template on the fitted body), NO_GARMENT (the
+    garment region cannot be fitted), UNKNOWN_TEMPLATE."""
+
+    def __init__(self, message: str, code: str = "SIMULATION_FAILED"):
+        super().__init__(message)
+        self.code = code
 
 
 class _Control:
@@ -125,7 +133,7 @@ def select_template(scan: ScanData, opts: RecoverOptions, landmarks=None) -> str
     name = CLASS_TEMPLATE.get(scan.garment_class)
     if name not in TEMPLATES:
         raise RecoveryError(f"no built-in template for a '{scan.garment_class}' garment (built-ins: "
-                            f"{', '.join(sorted(TEMPLATES))}); give one with --template FILE")
+                            f"{', '.join(sorted(TEMPLATES))}); give one with --template FILE", "UNKNOWN_TEMPLATE")
     if name == "tshirt" and landmarks is not None:
         reach = sleeve_reach(scan.boundaries, landmarks)
         if reach is not None and reach > LONG_SLEEVE_REACH:
@@ -202,6 +210,20 @@ def _initial_drape(cloth, opts, cancel):
         if r.converged or r.diverged:
             break
     return r, steps
+
+
+def check_rests_on_body(x, body_vertices, body_faces, template_name: str, cancel=None) -> float:
+    """The nearest distance (m) from a drape x (V, 3) m to the body surface; raises RecoveryError
+    when it exceeds SUPPORT_GAP. A garment at equilibrium with nothing pinned hangs on the body:
+    its weight goes through contacts, so some vertex lies within the contact thickness. One
+    farther off fell past the body (a template laid out away from the fitted body) and a
+    Newton equilibrium of it balances gravity with the drape's anchor springs, not the body."""
+    gap = float(surface_distances(np.asarray(x, float), body_vertices, body_faces, cancel=cancel).min())
+    if gap > SUPPORT_GAP:
+        raise RecoveryError(f"the initial drape of template '{template_name}' does not rest on the fitted body: "
+                            f"its nearest vertex is {100 * gap:.1f} cm from the body's surface (it fell off it); "
+                            f"the body fit or the template does not match the scan")
+    return gap
 
 
 def _assets_drape(g, co, material, body_vertices, body_faces, opts, cancel):
@@ -283,7 +305,7 @@ def _recover(scan, opts: RecoverOptions, ctl: "_Control", body_model, t0: float)
     Vg_scan, Fg_scan = data.garment_mesh()
     if len(data.interior_points) < 10:
         raise RecoveryError(f"the garment region has only {len(data.interior_points)} interior samples; "
-                            f"too small to fit a garment")
+                            f"too small to fit a garment", "NO_GARMENT")
 
     # body -----------------------------------------------------------------------------------
     ctl.report("body")
@@ -297,6 +319,20 @@ def _recover(scan, opts: RecoverOptions, ctl: "_Control", body_model, t0: float)
                    cancel=ctl)
     ctl.check("body")
     body_params = fit.params
+    yaw, turn = facing_yaw(body_params), None
+    if abs(yaw) > FACING_TURN and data.checked is not None:
+        # the subject faces elsewhere than +Z: turn the scan (openings named again) and the body
+        # to the core frame's facing; the outputs are turned back at the end
+        turn = yaw_rotation(-yaw)
+        data = data.turned(turn)
+        Vg_scan, Fg_scan = data.garment_mesh()
+        body_mask = data.label_vertex_mask("body") if data.labels is not None else np.zeros(len(data.vertices), bool)
+        body_params = turned_params(body_params, turn)
+    if not data.boundaries:   # L_boundary (paper §4.2.5) would have nothing to match
+        found = next((w for w in data.warnings if w.startswith("openings not found")), "no openings found")
+        raise RecoveryError(f"the garment region shows none of a '{data.garment_class}' garment's openings "
+                            f"({found}): the boundary term has nothing to fit — is the garment label or type "
+                            f"right, and the garment region a whole garment?", "NO_GARMENT")
     body_vertices = model.pose(body_params)
 
     # template + initial drape ------------------------------------------------------------------
@@ -347,6 +383,7 @@ def _recover(scan, opts: RecoverOptions, ctl: "_Control", body_model, t0: float)
                             f"converge in {drape_steps} XPBD steps (at most {opts.drape_rounds} rounds of drape_steps "
                             f"{opts.drape_steps}, each then Newton: {r.message}; residual {r.residual:.2e}{also})")
     x_initial = np.array(cloth.x)
+    check_rests_on_body(x_initial, body_vertices, model.faces, template_name, ctl.token)
     cm = 100.0
     nsamp = int(opts.config.get("metrics", {}).get("chamfer_samples", 20000)) if opts.config else 20000
     chamfer_initial = cm * chamfer_meshes(x_initial, g.faces, Vg_scan, Fg_scan, samples=nsamp, cancel=ctl.token)
@@ -439,6 +476,15 @@ def _recover(scan, opts: RecoverOptions, ctl: "_Control", body_model, t0: float)
         warnings.append(f"the recovered garment is farther from the scan (Chamfer {optimized:.3f} cm) than the "
                         f"template's initial drape ({chamfer_initial:.3f} cm): the objective preferred a worse fit "
                         f"(with boundary_scale > 0 a garment hung elsewhere costs little)")
+    body_out, scan_vertices = co.body_params, data.vertices
+    metrics["facing_yaw_rad"] = yaw   # the fitted body's facing, from +Z (about +Y)
+    if turn is not None:   # back to the scan's own facing: the assets overlay the scan as given
+        x_out, body_final, scan_vertices = x_out @ turn, body_final @ turn, data.vertices @ turn
+        body_out = turned_params(co.body_params, turn.T)
+        g_final = Garment(rest_out, g_out.faces, x_out, g_out.seams, g_out.panel, g_out.panels, g_out.boundaries,
+                          name=g_out.name)
+        warnings.append(f"the subject faces {np.degrees(yaw):.0f}° from +Z about the vertical: the recovery ran "
+                        f"turned to face +Z and its outputs are turned back (metrics.facing_yaw_rad)")
     bend = np.asarray(co.bend_stiffness, float)
     mat = MaterialAssets(bending_stiffness=float(np.exp(np.mean(np.log(bend)))),
                          panel_bending_stiffness=bend.copy() if opts.bending == "panel" else np.zeros(0),
@@ -448,16 +494,16 @@ def _recover(scan, opts: RecoverOptions, ctl: "_Control", body_model, t0: float)
     result = RecoveryResult(
         garment_type=data.garment_type or data.garment_class, template_name=template_name,
         pattern=pattern_assets(g_final, handles_out), material=mat,
-        body=_body_assets(model, co.body_params), garment_vertices=x_out, garment_faces=g_out.faces.astype(np.int64),
+        body=_body_assets(model, body_out), garment_vertices=x_out, garment_faces=g_out.faces.astype(np.int64),
         garment_uv=rest_out.copy(), body_vertices=body_final, body_faces=np.asarray(model.faces, np.int64),
         metrics=metrics, iterations=co.iterations, wall_s=time.perf_counter() - t0,
         loss_history=[{"iteration": h["iteration"], "value": h["value"], "terms": h["terms"],
                        "stage": h.get("stage", "co_optimization")} for h in co.history])
     result.garment = g_final
     result.template = g_out   # the template mesh the pattern was deformed from (same vertices; its rest unchanged)
-    result.body_params = co.body_params
+    result.body_params = body_out
     result.warnings = warnings
-    result.scan_mesh = (data.vertices, data.faces)
+    result.scan_mesh = (scan_vertices, data.faces)
     return result
 
 

@@ -42,6 +42,11 @@ class ScanTransform:
             raise BadOptionError(f"up axis (up_axis): expected one of {', '.join(UP_ROTATIONS)}, got {up!r}")
         return cls(UNITS[u], UP_ROTATIONS[a].copy(), u, a)
 
+    def turned(self, Q) -> "ScanTransform":
+        """This transform followed by the proper rotation Q (3, 3) of the core frame — a turn
+        about the vertical that makes the subject face +Z (the recovery's facing)."""
+        return ScanTransform(self.scale, np.asarray(Q, np.float64) @ self.rotation, self.units, self.up)
+
     def to_core(self, points) -> np.ndarray:
         """(N, 3) scan-frame points (scan units) → core frame (m)."""
         P = np.asarray(points, dtype=np.float64)

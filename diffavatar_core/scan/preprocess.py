@@ -3,6 +3,7 @@ named boundary loops (openings), holes and interior samples (paper §4.2: the bo
 interior targets of the loss)."""
 from __future__ import annotations
 
+import dataclasses
 import json
 import pathlib
 from dataclasses import dataclass, field, fields
@@ -105,6 +106,19 @@ class ScanData:
     height_m: float
     source: str = "arrays"
     warnings: list[str] = field(default_factory=list)
+    checked: object = field(default=None, repr=False, compare=False)   # the CheckedScan it came from
+
+    def turned(self, Q) -> "ScanData":
+        """The same scan turned by the proper rotation Q (3, 3) about the vertical, preprocessed
+        again: the openings are named where the subject faces +Z (their rules take +X as the
+        body's left) and `transform` includes the turn, so to_scan() still maps back. Needs the
+        CheckedScan it was made from (every ScanData preprocess_checked makes has it)."""
+        if self.checked is None:
+            raise ValueError("ScanData.turned: this ScanData was not made by preprocess_checked")
+        c = self.checked
+        Q = np.asarray(Q, np.float64)
+        return preprocess_checked(dataclasses.replace(c, transform=c.transform.turned(Q),
+                                                      vertices=np.ascontiguousarray(c.vertices @ Q.T)))
 
     def garment_mesh(self) -> tuple[np.ndarray, np.ndarray]:
         """The garment region alone: (V (n, 3) m, F (m, 3) int64), vertex order kept."""
@@ -277,7 +291,7 @@ def preprocess_checked(checked: CheckedScan) -> ScanData:
 
     return ScanData(V, F, labels, dict(lmap.classes), gface, gvert, value, cls,
                     checked.garment_type if garment_type or labels is None else None, boundaries, boundary_idx, [pts[i] for i in hole_ids],
-                    interior, tf, height, raw.source, warnings)
+                    interior, tf, height, raw.source, warnings, checked)
 
 
 def load_scan(scan, units: str = "m", up: str = "y", label=None, garment_type: str | None = None,

@@ -12,6 +12,7 @@ import diffavatar_core as dc
 from diffavatar_core.pattern.cage import build_cage
 from diffavatar_core.pipeline import RecoverOptions, RecoveryError, recover
 from diffavatar_core.pipeline.coopt import CoOptObjective
+from diffavatar_core.pipeline.facing import facing_yaw, turned_params, yaw_rotation
 from diffavatar_core.pipeline.output import write_result
 from diffavatar_core.demo import SAMPLE, TRUTH
 from diffavatar_core.scan import ImplausibleSizeError, LabelError, NoGarmentError, NonFiniteError, ScanError
@@ -418,6 +419,89 @@ def test_bad_inputs_give_clear_errors():
         recover((V / 100.0, F, L), {"units": "cm"})
     with pytest.raises(LabelError):
         recover((V, F, L), {"units": "cm", "garment_type": "cape"})
+
+
+def _flat_sheet(n=13, half=0.3, y0=0.6):
+    """A vertical 0.6 m square sheet (m): one boundary loop, no garment's openings."""
+    u, v = np.meshgrid(np.linspace(-half, half, n), np.linspace(y0, y0 + 2 * half, n))
+    V = np.column_stack([u.ravel(), v.ravel(), np.zeros(n * n)])
+    i, j = np.meshgrid(np.arange(n - 1), np.arange(n - 1), indexing="ij")
+    a = (i * n + j).ravel()
+    return V, np.concatenate([np.stack([a, a + 1, a + n], 1), np.stack([a + 1, a + n + 1, a + n], 1)])
+
+
+def test_a_garment_region_without_openings_is_refused_before_any_work():
+    """A flat sheet given as a skirt has one boundary loop and neither a waist nor a hem: the
+    boundary term would have nothing to match and the body fit nothing to wrap. Refused with
+    NO_GARMENT, naming the missing openings, before the template is draped (it used to run 77 s
+    and return a skirt 12 m below the body)."""
+    V, F = _flat_sheet()
+    stages = []
+    with pytest.raises(RecoveryError, match="none of a 'skirt' garment's openings.*waist, hem") as err:
+        recover((V, F), {"garment_type": "skirt", "units": "m", "iterations": 2},
+                progress=lambda stage, *_: stages.append(stage))
+    assert err.value.code == "NO_GARMENT" and "drape" not in stages, stages
+
+
+def test_a_drape_off_the_body_is_refused(skirt_problem):
+    """check_rests_on_body: the skirt's drape rests on the body (a vertex within the contact
+    thickness); the same drape 30 cm below the feet — where a template laid out beside the body
+    ends, held by the drape's anchors — is refused, with the distance in the message."""
+    from diffavatar_core.pipeline.recovery import SUPPORT_GAP, check_rests_on_body
+    model, p, g, cloth = skirt_problem[:4]
+    bv, bf = model.pose(p), model.faces
+    x = np.array(cloth.x)
+    assert check_rests_on_body(x, bv, bf, "skirt") < 0.5 * SUPPORT_GAP
+    fallen = x - np.array([0.0, x[:, 1].max() - bv[:, 1].min() + 0.3, 0.0])
+    with pytest.raises(RecoveryError, match=r"does not rest on the fitted body: its nearest vertex is 3\d\.\d cm") as err:
+        check_rests_on_body(fallen, bv, bf, "skirt")
+    assert err.value.code == "SIMULATION_FAILED"
+
+
+@pytest.fixture(scope="module")
+def sample_at_rest():
+    """The sample's recovery without optimizer steps (body fit, template drape, output drape)."""
+    V, F, L = _sample_arrays()
+    return recover((V, F, L), {"units": "cm", "iterations": 0})
+
+
+@pytest.mark.parametrize("yaw_deg,shift_cm", [(0.0, (40.0, 0.0, 25.0)), (90.0, (0.0, 0.0, 0.0)),
+                                              (-150.0, (-30.0, 0.0, 10.0))])
+def test_a_scan_turned_or_off_the_origin_recovers_as_the_scan_at_rest(sample_at_rest, yaw_deg, shift_cm):
+    """A capture rig's subject need not stand at the origin facing +Z: the sample scan turned by
+    yaw about the vertical and moved recovers the same skirt — openings named as at rest, the same
+    pattern (area), the template's drape as far from the scan — and the outputs overlay the scan
+    as given (the garment and body are the scan-at-rest ones moved the same way, within the fold
+    states' spread). Before: the skirt's template was laid out at x = 0 beside a body fitted
+    elsewhere, and a turned scan lost its waist opening (its rules take +X as the body's left)."""
+    at = sample_at_rest
+    V, F, L = _sample_arrays()
+    Q = yaw_rotation(np.radians(yaw_deg))
+    shift = np.array(shift_cm)
+    moved = recover((V @ Q.T + shift, F, L), {"units": "cm", "iterations": 0})
+    assert moved.metrics["facing_yaw_rad"] == pytest.approx(np.radians(yaw_deg), abs=0.1)
+    assert not any("openings not found" in w for w in moved.warnings), moved.warnings
+    assert moved.garment.total_area() == pytest.approx(at.garment.total_area(), rel=1e-3)
+    assert moved.metrics["chamfer_initial_cm"] == pytest.approx(at.metrics["chamfer_initial_cm"], rel=0.15)
+    expect = lambda X: 100 * X @ Q.T + shift   # noqa: E731  (cm) the at-rest output moved with the scan
+    np.testing.assert_allclose(100 * moved.garment_vertices.mean(axis=0), expect(at.garment_vertices).mean(axis=0),
+                               atol=0.7)
+    assert np.linalg.norm(100 * moved.body_vertices - expect(at.body_vertices), axis=1).mean() < 1.0
+    np.testing.assert_allclose(100 * moved.scan_mesh[0], expect(at.scan_mesh[0]), atol=1e-6)   # the cleaned scan
+
+
+def test_facing_turns_the_body_with_the_world():
+    """turned_params: the body posed after the world turns by Q is the body posed, turned —
+    for any global rotation and translation (LBS's global transform about the origin)."""
+    from diffavatar_core.body import BodyModel
+    model = BodyModel.default()
+    p = model.zero_params()
+    p.rotation[:] = [0.1, -2.2, 0.05]
+    p.translation[:] = [0.3, -0.05, -0.4]
+    Q = yaw_rotation(0.7)
+    np.testing.assert_allclose(model.pose(turned_params(p, Q)), model.pose(p) @ Q.T, atol=1e-12)
+    assert facing_yaw(turned_params(p, Q)) == pytest.approx(facing_yaw(p) + 0.7, abs=1e-12)
+    assert facing_yaw(model.zero_params()) == 0.0
 
 
 def test_units_and_up_axis_give_the_same_scan_frame():

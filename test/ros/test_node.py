@@ -445,6 +445,44 @@ def test_a_scan_bad_only_after_cleaning_fails_in_its_job_with_its_code(setup_ser
     assert [s.raw.source for s in runner.scans] == ["message before", "message after"]
 
 
+def test_a_recovery_error_ends_its_job_with_its_code(setup_service, tmp_path):
+    """The recovery's own named problems (pipeline.RecoveryError) answer with their code and
+    message, like a scan's, not as an internal error: a flat sheet sent as a skirt to the real
+    pipeline has none of a skirt's openings → NO_GARMENT, recorded on disk; the result produced
+    before stays and the next job succeeds."""
+    from diffavatar_core.pipeline.recovery import RecoveryError
+    from diffavatar_ros.node import default_runner
+    fallback = PreprocessingRunner()
+
+    def runner(scan, options, rc):
+        if options["job_id"] == "flat":
+            return default_runner(scan, options, rc)
+        return fallback(scan, options, rc)
+    svc, cli = setup_service(runner)
+    cli.send(_msg("before", iterations=2))
+    assert cli.result_for("before").error_code == AvatarAssets.ERROR_NONE
+    n = 13
+    u, v = np.meshgrid(np.linspace(-0.3, 0.3, n), np.linspace(0.6, 1.2, n))
+    V = np.column_stack([u.ravel(), v.ravel(), np.zeros(n * n)])
+    i, j = np.meshgrid(np.arange(n - 1), np.arange(n - 1), indexing="ij")
+    a = (i * n + j).ravel()
+    F = np.concatenate([np.stack([a, a + 1, a + n], 1), np.stack([a + 1, a + n + 1, a + n], 1)])
+    flat = convert.scan_to_msg(V, F, job_id="flat", garment_type="skirt", iterations=2)
+    cli.send(flat)
+    cli.send(_msg("after", iterations=2))
+    res = cli.result_for("flat", timeout=120)
+    assert res.error_code == AvatarAssets.ERROR_NO_GARMENT, (res.error_code, res.error_msg)
+    assert "none of a 'skirt' garment's openings" in res.error_msg
+    with pytest.raises(RecoveryError) as core:   # the very error of the Python API
+        from diffavatar_core.pipeline import recover
+        recover(convert.msg_to_arrays(flat), {"iterations": 2})
+    assert (core.value.code, str(core.value)) == ("NO_GARMENT", res.error_msg)
+    record = json.loads((tmp_path / "out" / "flat" / "error.json").read_text())
+    assert record["error"] == "NO_GARMENT" and record["message"] == res.error_msg
+    assert cli.result_for("after").error_code == AvatarAssets.ERROR_NONE
+    assert (tmp_path / "out" / "before" / "result.json").exists()
+
+
 def test_status_reports_queue_current_job_and_last_error(setup_service, client_context):
     from diagnostic_msgs.msg import DiagnosticArray
     runner = SphereFitRunner(repeat=100)
