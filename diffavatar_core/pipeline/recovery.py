@@ -32,6 +32,7 @@ from ..pattern.garment import Garment
 from ..pattern.templates import FIT_MEASUREMENTS, TEMPLATES, make_template
 from ..scan import ScanData, load_scan
 from ..scan.errors import ScanError
+from ..scan.frame import lying_hint
 from ..sim.cloth import Cloth
 from ..sim.material import ClothMaterial
 from .coopt import co_optimize, seam_mismatch_pct
@@ -319,7 +320,7 @@ def _recover(scan, opts: RecoverOptions, ctl: "_Control", body_model, t0: float)
                    cancel=ctl)
     ctl.check("body")
     body_params = fit.params
-    yaw, turn = facing_yaw(body_params), None
+    yaw, turn, given = facing_yaw(body_params), None, data   # given: the scan as converted, before any turn
     if abs(yaw) > FACING_TURN and data.checked is not None:
         # the subject faces elsewhere than +Z: turn the scan (openings named again) and the body
         # to the core frame's facing; the outputs are turned back at the end
@@ -330,9 +331,11 @@ def _recover(scan, opts: RecoverOptions, ctl: "_Control", body_model, t0: float)
         body_params = turned_params(body_params, turn)
     if not data.boundaries:   # L_boundary (paper §4.2.5) would have nothing to match
         found = next((w for w in data.warnings if w.startswith("openings not found")), "no openings found")
+        lying = lying_hint(given.vertices, given.transform)
         raise RecoveryError(f"the garment region shows none of a '{data.garment_class}' garment's openings "
-                            f"({found}): the boundary term has nothing to fit — is the garment label or type "
-                            f"right, and the garment region a whole garment?", "NO_GARMENT")
+                            f"({found}): the boundary term has nothing to fit — "
+                            + (f"{lying}" if lying else "is the garment label or type right, and the garment "
+                                                        "region a whole garment?"), "NO_GARMENT")
     body_vertices = model.pose(body_params)
 
     # template + initial drape ------------------------------------------------------------------

@@ -62,6 +62,20 @@ class ScanTransform:
                 "units": self.units, "up": self.up}
 
 
+def lying_hint(V_core: np.ndarray, transform: ScanTransform) -> str:
+    """'' for a scan that stands, else a hint that its up axis may be wrong, naming the other
+    one and the height it would give (core-frame vertices, m, as converted from the scan). A
+    person or a worn garment is taller than at least one of its horizontal extents (a t-shirt's
+    sleeves make it wide, not deep); a scan more than 1.2 × as wide and as deep as it is tall is
+    likely lying — a Z-up file read as Y-up — though its size is plausible."""
+    ext = V_core.max(axis=0) - V_core.min(axis=0)
+    if min(ext[0], ext[2]) <= 1.2 * ext[1]:
+        return ""
+    other = "z" if transform.up == "y" else "y"
+    return (f"the scan is {ext[1]:.3g} m tall but {ext[0]:.3g} m wide and {ext[2]:.3g} m deep — lying? "
+            f"up={other} would make it {ext[2]:.3g} m tall")
+
+
 def check_plausible_size(V_core: np.ndarray, transform: ScanTransform, min_height: float,
                          max_height: float) -> float:
     """Height (Y extent, m) of core-frame vertices; raises ImplausibleSizeError when it is

@@ -443,6 +443,16 @@ def test_a_garment_region_without_openings_is_refused_before_any_work():
     assert err.value.code == "NO_GARMENT" and "drape" not in stages, stages
 
 
+def test_a_lying_scan_is_refused_with_the_up_axis_named():
+    """The sample written Z-up but read as Y-up has a plausible size (0.52 m tall) but lies:
+    none of the skirt's openings is horizontal where it should be, and the error says which up
+    axis would make it stand."""
+    V, F, L = _sample_arrays()
+    with pytest.raises(RecoveryError, match=r"0\.524 m tall .* lying\? up=z would make it 1\.67 m tall") as err:
+        recover((np.column_stack([V[:, 0], -V[:, 2], V[:, 1]]), F, L), {"units": "cm", "up": "y", "iterations": 0})
+    assert err.value.code == "NO_GARMENT"
+
+
 def test_a_drape_off_the_body_is_refused(skirt_problem):
     """check_rests_on_body: the skirt's drape rests on the body (a vertex within the contact
     thickness); the same drape 30 cm below the feet — where a template laid out beside the body

@@ -276,3 +276,21 @@ def test_a_turned_scan_names_its_openings_once_turned_back():
         np.testing.assert_allclose(back.boundaries[name], P, atol=1e-12)
     np.testing.assert_allclose(back.transform.to_scan(back.vertices), turned.transform.to_scan(turned.vertices),
                                atol=1e-9)
+
+
+def test_only_a_lying_scan_gets_the_lying_hint():
+    """frame.lying_hint: the sample standing (1.67 m tall, 1.07 wide with its arms, 0.52 deep),
+    turned to face +X, and its cleaned garment alone (a skirt, 0.50 m tall, as deep) stand; the sample
+    lying (a Z-up file read as Y-up) gets the hint naming up=z and its height."""
+    from diffavatar_core.demo import SAMPLE
+    from diffavatar_core.pipeline.facing import yaw_rotation
+    from diffavatar_core.scan import read_scan_file
+    from diffavatar_core.scan.frame import ScanTransform, lying_hint
+    raw = read_scan_file(SAMPLE)
+    tf = ScanTransform.from_options("cm", "y")
+    V = tf.to_core(raw.vertices[np.unique(raw.faces)])
+    assert lying_hint(V, tf) == ""
+    assert lying_hint(V @ yaw_rotation(np.pi / 2).T, tf) == ""
+    assert lying_hint(load_scan(SAMPLE, units="cm").garment_mesh()[0], tf) == ""   # fragments dropped
+    lying = np.column_stack([V[:, 0], -V[:, 2], V[:, 1]])
+    assert "up=z would make it 1.67 m tall" in lying_hint(lying, tf)
