@@ -449,7 +449,8 @@ def test_a_lying_scan_is_refused_with_the_up_axis_named():
     axis would make it stand."""
     V, F, L = _sample_arrays()
     with pytest.raises(RecoveryError, match=r"0\.524 m tall .* lying\? up=z would make it 1\.67 m tall") as err:
-        recover((np.column_stack([V[:, 0], -V[:, 2], V[:, 1]]), F, L), {"units": "cm", "up": "y", "iterations": 0})
+        recover((np.column_stack([V[:, 0], -V[:, 2], V[:, 1]]), F, L),
+                RecoverOptions.from_config(units="cm", up="y", iterations=0))
     assert err.value.code == "NO_GARMENT"
 
 
@@ -470,9 +471,10 @@ def test_a_drape_off_the_body_is_refused(skirt_problem):
 
 @pytest.fixture(scope="module")
 def sample_at_rest():
-    """The sample's recovery without optimizer steps (body fit, template drape, output drape)."""
+    """The sample's recovery without optimizer steps (body fit, template drape, output drape; a
+    dict's iterations 0 means the configured number, as in the node's messages)."""
     V, F, L = _sample_arrays()
-    return recover((V, F, L), {"units": "cm", "iterations": 0})
+    return recover((V, F, L), RecoverOptions.from_config(units="cm", iterations=0))
 
 
 @pytest.mark.parametrize("yaw_deg,shift_cm", [(0.0, (40.0, 0.0, 25.0)), (90.0, (0.0, 0.0, 0.0)),
@@ -488,7 +490,7 @@ def test_a_scan_turned_or_off_the_origin_recovers_as_the_scan_at_rest(sample_at_
     V, F, L = _sample_arrays()
     Q = yaw_rotation(np.radians(yaw_deg))
     shift = np.array(shift_cm)
-    moved = recover((V @ Q.T + shift, F, L), {"units": "cm", "iterations": 0})
+    moved = recover((V @ Q.T + shift, F, L), RecoverOptions.from_config(units="cm", iterations=0))
     assert moved.metrics["facing_yaw_rad"] == pytest.approx(np.radians(yaw_deg), abs=0.1)
     assert not any("openings not found" in w for w in moved.warnings), moved.warnings
     assert moved.garment.total_area() == pytest.approx(at.garment.total_area(), rel=1e-3)
