@@ -49,7 +49,7 @@ LONG_SLEEVE_REACH = 0.95    # sleeve_reach above this: long sleeves (between the
 CANCEL_POLL_S = 0.05        # s: how often a threading.Event given as `cancel` is looked at
 SELF_ANCHOR_TOL = 1e-4      # m: the output drape re-anchored at itself until it moves less (Cloth.self_anchor)
 MIN_BODY_FRACTION = 0.2    # of the scan's vertices, for a body fit to the body-labelled points
-SUPPORT_GAP = 0.01          # m: a drape with no vertex this near the body does not rest on it (× thickness 4 mm: 2.5)
+SUPPORT_GAP = 0.01          # m: a drape with no vertex this near the body does not rest on it (2.5 × the 4 mm contact thickness)
 
 
 class RecoveryError(ValueError):
