@@ -231,9 +231,10 @@ def _skirt_spec(lm: BodyLandmarks, m: SkirtMeasurements) -> PatternSpec:
 
 def _torso_section(lm: BodyLandmarks, gap: float, waist: float, hip: float):
     """y → (centre x, centre z, half width, half depth) m of an ellipse around the torso between the
-    waist and the hips (centred on the body's hip → waist centres, wherever the body stands) (constant below the hips) for a garment of these girths (m): half width
-    from the body's girth (torso_radius) plus gap, depth matching the garment's girth but at
-    least 0.85 × the width (deep enough for the seat and the belly)."""
+    waist and the hips (constant below the hips), centred on the body's hip → waist centres
+    wherever the body stands, for a garment of these girths (m): half width from the body's girth
+    (torso_radius) plus gap, depth matching the garment's girth but at least 0.85 × the width
+    (deep enough for the seat and the belly)."""
     hip_y, waist_y = lm.hip_center[1], lm.waist_center[1]
     hip_half, waist_half = torso_radius(lm, lm.hip_girth), torso_radius(lm, lm.waist_girth)
 

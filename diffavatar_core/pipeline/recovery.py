@@ -311,7 +311,7 @@ def _recover(scan, opts: RecoverOptions, ctl: "_Control", body_model, t0: float)
     # body -----------------------------------------------------------------------------------
     ctl.report("body")
     model = body_model or BodyModel.default()
-    body_mask = data.label_vertex_mask("body") if data.labels is not None else np.zeros(len(data.vertices), bool)
+    body_mask = data.label_vertex_mask("body")   # all False for a garment-only scan
     full = body_mask.mean() >= MIN_BODY_FRACTION
     pts = data.vertices[body_mask] if full else Vg_scan
     fit = fit_body(pts, None, model, garment_only=not full,
@@ -327,7 +327,7 @@ def _recover(scan, opts: RecoverOptions, ctl: "_Control", body_model, t0: float)
         turn = yaw_rotation(-yaw)
         data = data.turned(turn)
         Vg_scan, Fg_scan = data.garment_mesh()
-        body_mask = data.label_vertex_mask("body") if data.labels is not None else np.zeros(len(data.vertices), bool)
+        body_mask = data.label_vertex_mask("body")
         body_params = turned_params(body_params, turn)
     if not data.boundaries:   # L_boundary (paper §4.2.5) would have nothing to match
         found = next((w for w in data.warnings if w.startswith("openings not found")), "no openings found")
