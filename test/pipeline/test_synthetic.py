@@ -1,13 +1,16 @@
 """Synthetic ground-truth cases (pipeline/synthetic.py), the benchmark's and the tests' scans:
 what each option of make_case changes in the truth."""
 import dataclasses
+import json
 
 import numpy as np
 import pytest
 
 from diffavatar_core.body import BodyModel
 from diffavatar_core.metrics import chamfer_meshes
-from diffavatar_core.pipeline.synthetic import GARMENT_LABEL, make_case, scan_like, to_scan_frame
+from diffavatar_core.body.params import BodyParams
+from diffavatar_core.pattern.templates import make_template
+from diffavatar_core.pipeline.synthetic import GARMENT_LABEL, drape_truth, make_case, scan_like, to_scan_frame
 from diffavatar_core.scan.frame import ScanTransform
 from edge_strain import mean_edge_strain
 
@@ -68,6 +71,25 @@ def test_the_truth_floor_is_the_scans_noise():
     assert 0.3 * 0.2 < s2 < 0.8 * 0.2, floors        # σ = 0.2 cm
     assert 1.8 < s4 / s2 < 2.2, floors               # linear in σ
     assert case.truth_chamfer_cm() > s2 - 0.02, (case.truth_chamfer_cm(), floors)   # + holes: no lower
+
+
+def test_the_truth_is_remade_from_its_truth_json():
+    """truth.json (SyntheticCase.truth_json, through JSON text) holds all the truth is made of:
+    the template re-made with its measurements on its body and draped as make_case drapes
+    (drape_truth) lands on the case's own drape vertex for vertex. What bench/recover_floor.py's
+    re-triangulations rely on: at edge × 1 they re-drape the truth itself, at edge × (1 ± 2.5%)
+    only the mesh differs."""
+    model = BodyModel.default()
+    case = make_case("skirt", seed=3, edge=0.07, model=model)
+    t = json.loads(json.dumps(case.truth_json()))
+    b = t["body"]
+    params = BodyParams(np.array(b["shape"]), np.array(b["pose"]), np.array(b["bone_scales"]),
+                        np.array(b["rotation"]), np.array(b["translation"]))
+    g = make_template(t["template"], landmarks=model.landmarks(params), edge_length=0.07, **t["measurements_m"])
+    cloth, _ = drape_truth(g, (model.pose(params), np.asarray(model.faces)), t["bend_stiffness_Nm"],
+                           compliance_scale=t["compliance_scale"])
+    np.testing.assert_array_equal(g.faces, case.garment.faces)
+    np.testing.assert_allclose(np.asarray(cloth.x), case.garment_x, rtol=0, atol=1e-9)
 
 
 def test_bad_truth_options_are_named():
