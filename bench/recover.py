@@ -15,7 +15,8 @@ unguided (no scan-guided drapes, guided_stiffness 0: a reference run); no_measur
 handles start on the template's outline, measurement_fit_iterations 0: a reference run);
 fixed_masses (the template's masses throughout); stretch (the stretch compliances optimized too,
 `stretch: garment`; truths with other compliances by --compliance-scales); robust_boundary (the
-boundary term robust beyond 1 cm, boundary_scale 0.01 m).
+boundary term robust beyond 1 cm, boundary_scale 0.01 m); unsized (no template sizing from the scan's openings,
+template_sizing false: a reference run).
 
 The floor: each case's truth.chamfer_truth_cm is the truth's own drape against the scan (the scan's
 noise, resampling and holes; SyntheticCase.truth_chamfer_cm), so each variant's chamfer_ratio_floor
@@ -54,9 +55,9 @@ VARIANTS = ("full", "no_cage", "no_seam", "no_curvature")
 # not ablations of the paper (but no_cage_euclidean, its "w/o control cage" without our H¹ metric): the reference
 # runs of the L-BFGS metric before the H¹ one, of the recovery without
 # scan-guided drapes, without the template measurement fit, with the template's masses throughout, with the stretch
-# compliances optimized, with a 10× larger L-BFGS unit for the bending (1 decade), and with the robust boundary term
+# compliances optimized, with a 10× larger L-BFGS unit for the bending (1 decade), with the robust boundary term, and without the template sizing
 EXTRA_VARIANTS = ("euclidean", "no_cage_euclidean", "unguided", "no_measurement_fit", "fixed_masses", "stretch", "bending_step_1",
-                  "robust_boundary")
+                  "robust_boundary", "unsized")
 
 
 def corner_edge_lengths(g, corners_from=None) -> list:
@@ -116,6 +117,8 @@ def options_for(variant, iterations, output_edge=0.0, friction=None, contact_nor
         return o.with_(guided_stiffness=0.0)
     if variant == "no_measurement_fit":
         return o.with_(measurement_fit_iterations=0)
+    if variant == "unsized":
+        return o.with_(template_sizing=False)
     if variant == "fixed_masses":
         return o.with_(masses_follow_rest=False)
     if variant == "stretch":
@@ -162,6 +165,7 @@ def run_case(case, variant, iterations, output_edge=0.0, friction=None, contact_
         "initial_drapes_kept": m.get("initial_drapes_kept"),
         "output_drape": m.get("output_drape"),
         "measurement_fit": m.get("measurement_fit"),
+        "template_sizing": m.get("template_sizing"),
     }
 
 

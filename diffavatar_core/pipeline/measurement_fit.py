@@ -26,17 +26,18 @@ FD_STEP = 1e-4   # m: central-difference step of ∂ζ/∂m (the outline is smoo
 
 class MeasurementMap:
     """ζ(m) (H, 2) m for the cage of `garment`, a built-in template `name` built on `landmarks`
-    with the default measurements: handles(values0) == cage.zeta0. names: the fitted
-    measurements (default templates.FIT_MEASUREMENTS[name]). Raises ValueError for a template
-    without a parametric outline (a template file) or a garment not built from its spec."""
+    with the default measurements overridden by `measurements` (m; e.g. template_sizing's):
+    handles(values0) == cage.zeta0. names: the fitted measurements (default
+    templates.FIT_MEASUREMENTS[name]). Raises ValueError for a template without a parametric
+    outline (a template file) or a garment not built from its spec."""
 
-    def __init__(self, name: str, landmarks, garment, cage, names=None):
+    def __init__(self, name: str, landmarks, garment, cage, names=None, measurements=None):
         if name not in FIT_MEASUREMENTS:
             raise ValueError(f"measurement fit: no parametric measurements for template {name!r} "
                              f"(built-ins: {sorted(FIT_MEASUREMENTS)})")
         self.name, self.landmarks, self.cage = name, landmarks, cage
         self.names = tuple(FIT_MEASUREMENTS[name] if names is None else names)
-        m0 = template_measurements(name, landmarks)
+        m0 = template_measurements(name, landmarks, **(measurements or {}))
         self.values0 = np.array([float(getattr(m0, n)) for n in self.names])
         self.panel = np.asarray(cage.handle_panel)
         self.edge = np.empty(len(cage.handles), np.int32)

@@ -69,6 +69,7 @@ class RecoverOptions:
     boundary_scale: float = 0.0
     fresh_every: int = 5
     measurement_fit_iterations: int = 10
+    template_sizing: bool = True
     masses_follow_rest: bool = True
     guided_stiffness: float = 1.0e4
     guided_capture: float = 0.03
@@ -111,7 +112,7 @@ class RecoverOptions:
         if self.measurement_fit_iterations and not self.step_sizes.measurements > 0:
             raise ValueError("recover options: step_sizes.measurements must be positive when "
                              f"measurement_fit_iterations is {self.measurement_fit_iterations}")
-        for name in ("optimize_body", "masses_follow_rest"):
+        for name in ("optimize_body", "masses_follow_rest", "template_sizing"):
             if not isinstance(getattr(self, name), bool):
                 bad(name, "must be true or false")
         for name in ("output_drape_steps", "output_drape_sweeps", "drape_rounds"):

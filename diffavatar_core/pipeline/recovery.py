@@ -25,11 +25,12 @@ from .. import _core
 from .._validate import is_cancelled
 from ..body import BodyModel
 from ..body.fitting import fit_body
+from ..loss import boundary_loss, garment_samples, interior_loss
 from ..metrics import chamfer_meshes, mesh_quality, surface_distances
 from ..pattern.cage import build_cage
 from ..pattern.export import pattern_assets
 from ..pattern.garment import Garment
-from ..pattern.templates import FIT_MEASUREMENTS, TEMPLATES, make_template
+from ..pattern.templates import FIT_MEASUREMENTS, TEMPLATES, make_template, template_measurements
 from ..scan import ScanData, load_scan
 from ..scan.errors import ScanError
 from ..scan.frame import lying_hint
@@ -41,6 +42,7 @@ from .measurement_fit import MeasurementMap
 from .options import RecoverOptions
 from .refine import settle_carried, transfer_pattern, transfer_positions
 from .result import BodyAssets, MaterialAssets, RecoveryResult
+from .template_sizing import SIZING_ROUNDS, size_from_openings
 
 STAGES = ("preprocess", "body", "drape", "optimize", "refine", "metrics")
 # garment class → built-in template when the type names a class or a synonym (config/labels.yaml)
@@ -227,6 +229,16 @@ def check_rests_on_body(x, body_vertices, body_faces, template_name: str, cancel
     return gap
 
 
+def _data_loss(x, g: Garment, data: ScanData, opts: RecoverOptions) -> float:
+    """ρ L_boundary + σ L_interior (paper §4.2.5; m², opts' weights) of a drape x (V, 3) m of
+    garment g against the scan: the data terms of φ as the co-optimization measures them, by
+    which template sizing chooses its start (coopt: every other start is chosen by φ too)."""
+    w = opts.weights
+    lb = boundary_loss(x, g.boundaries, data.boundaries, opts.boundary_scale).value if data.boundaries else 0.0
+    li = interior_loss(x, g.faces, garment_samples(x, g.faces, opts.samples, seed=0), data.interior_points).value
+    return float(w.boundary * lb + w.interior * li)
+
+
 def _assets_drape(g, co, material, body_vertices, body_faces, opts, cancel):
     """The co-optimization's drape re-solved on a Cloth of the recovered pattern and re-anchored
     at itself until it stays put (Cloth.self_anchor). The optimizer's equilibria hold anchor
@@ -390,12 +402,53 @@ def _recover(scan, opts: RecoverOptions, ctl: "_Control", body_model, t0: float)
     cm = 100.0
     nsamp = int(opts.config.get("metrics", {}).get("chamfer_samples", 20000)) if opts.config else 20000
     chamfer_initial = cm * chamfer_meshes(x_initial, g.faces, Vg_scan, Fg_scan, samples=nsamp, cancel=ctl.token)
+    g_template = g   # the template as selected: chamfer_initial and template_area_m2 are its
+
+    # template sizing: length and sleeve length from the scan's openings, draped fresh -------------
+    sizes, sizing = {}, None
+    if (opts.template_sizing and opts.iterations and opts.measurement_fit_iterations and template_name in FIT_MEASUREMENTS
+            and remake is not None and template_name in TEMPLATES):
+        m_default = template_measurements(template_name, lm)
+        best = _data_loss(x_initial, g, data, opts)
+        sizing = {"template_m": {k: float(getattr(m_default, k)) for k in FIT_MEASUREMENTS[template_name]},
+                  "data_loss": best, "rounds": [], "kept": False}
+        g_now, x_now, now = g, x_initial, {}
+        for _ in range(SIZING_ROUNDS):   # each from the last round's drape (template_sizing.py)
+            estimate = size_from_openings(template_name, lm, x_now, g_now.boundaries, data.boundaries, measurements=now)
+            if not estimate:
+                break
+            now = {**now, **estimate}
+            ctl.report("drape")
+            g_now = make_template(template_name, landmarks=lm, edge_length=opts.edge_length, **now)
+            c = _garment_cloth(g_now, g_now.rest, g_now.x0, material, (body_vertices, model.faces),
+                               masses_follow_rest=opts.masses_follow_rest, contact_normals=opts.contact_normals)
+            c.sew(cancel=ctl.token)
+            r_now, _ = _initial_drape(c, opts, ctl.token)
+            ctl.check("drape")
+            entry = {"measurements_m": dict(now), "converged": bool(r_now.converged)}
+            sizing["rounds"].append(entry)
+            if not r_now.converged:
+                break
+            x_now = np.array(c.x)
+            gap = float(surface_distances(x_now, body_vertices, model.faces, cancel=ctl.token).min())
+            if gap > SUPPORT_GAP:   # fell off the body: no start, and no base for another round
+                entry["off_body_m"] = gap
+                break
+            entry["data_loss"] = _data_loss(x_now, g_now, data, opts)
+            entry["chamfer_cm"] = cm * chamfer_meshes(x_now, g_now.faces, Vg_scan, Fg_scan, samples=nsamp,
+                                                      cancel=ctl.token)
+            if entry["data_loss"] < best:   # φ's data terms lower than at every start so far: start there
+                best, g, cloth, x_initial, sizes = entry["data_loss"], g_now, c, x_now, dict(now)
+                sizing["chamfer_cm"] = entry["chamfer_cm"]
+        if sizes:
+            remake = partial(make_template, template_name, landmarks=lm, **sizes)
+            sizing.update(kept=True, measurements_m=sizes)
 
     # co-optimization ------------------------------------------------------------------------
     cage = build_cage(g) if opts.parametrization == "cage" else None
     mmap = None   # the measurement fit: built-in templates (their outline is parametric)
     if opts.measurement_fit_iterations and template_name in FIT_MEASUREMENTS and remake is not None:
-        mmap = MeasurementMap(template_name, lm, g, cage if cage is not None else build_cage(g))
+        mmap = MeasurementMap(template_name, lm, g, cage if cage is not None else build_cage(g), measurements=sizes)
     n_total = opts.iterations + (opts.measurement_fit_iterations if mmap is not None and opts.iterations else 0)
     ctl.report("optimize", 0, n_total)
 
@@ -464,7 +517,8 @@ def _recover(scan, opts: RecoverOptions, ctl: "_Control", body_model, t0: float)
                                                 cancel=ctl.token),
         "mesh_quality_min": q.min, "mesh_quality_avg": q.mean,
         "seam_length_mismatch_max_pct": seam_mismatch_pct(g_out, rest_out),
-        "pattern_area_m2": g_final.total_area(), "template_area_m2": g.total_area(),
+        "pattern_area_m2": g_final.total_area(), "template_area_m2": g_template.total_area(),
+        "template_sizing": sizing,
         "stopped": co.stopped, "rejected_iterations": co.rejected, "fresh_drapes_kept": co.fresh_kept,
         "guided_drapes_kept": co.guided_kept, "initial_drapes_kept": co.initial_kept,
         "measurement_fit": co.measurement_fit.to_json() if co.measurement_fit is not None else None,

@@ -39,6 +39,27 @@ def test_map_reproduces_the_template_at_other_measurements(name):
     assert abs(area / g.total_area() - 1) > 0.005    # and it did change
 
 
+@pytest.mark.parametrize("name", ["longsleeve", "skirt"])
+def test_map_of_a_resized_template_starts_at_its_measurements(name):
+    """A template made with other measurements (template_sizing's re-made template) and mapped
+    with them: values0 are those measurements, ζ(values0) its own cage, and ζ at the default
+    measurements puts the outline's corners on the default template's outline (the same family of
+    outlines, entered elsewhere; shifted by this garment's panel layout offsets)."""
+    defaults = make_template(name, edge_length=0.06)
+    mm0 = MeasurementMap(name, None, defaults, build_cage(defaults))
+    sized = {mm0.names[0]: 0.9 * mm0.values0[0]}
+    g = make_template(name, edge_length=0.06, **sized)
+    cage = build_cage(g)
+    mm = MeasurementMap(name, None, g, cage, measurements=sized)
+    assert mm.values0[0] == pytest.approx(sized[mm0.names[0]]) and np.allclose(mm.values0[1:], mm0.values0[1:])
+    assert np.abs(mm.handles(mm.values0) - cage.zeta0).max() < 1e-12
+    spec = template_spec(name, None)
+    corners = np.flatnonzero(mm.t == 0.0)
+    back = mm.handles(mm0.values0)
+    for h in corners:
+        assert np.allclose(back[h], spec.panels[mm.panel[h]].vertices[mm.edge[h]] + mm.offset[h], atol=1e-12)
+
+
 def test_measurement_gradient_matches_central_differences(skirt_problem):
     """dφ/dm = (∂ζ/∂m)ᵀ dφ/dζ (adjoint through the drape, then the outline's Jacobian) against
     central differences of φ(ζ(m)) at a fixed warm start, for the cage and for the 'without

@@ -141,12 +141,18 @@ def test_end_to_end_recovery_moves_toward_the_ground_truth(recovered):
     # the error left, as a fraction of the template's, over the unperturbed run and 5 under
     # `--roundoff-seed` (stop 33) was 0.06-0.07 for the length and 0.01-0.50 for the hem width,
     # which the skirt's folds can take up instead
-    fit = m["measurement_fit"]
+    fit, sizing = m["measurement_fit"], m["template_sizing"]
     assert fit["names"] == ["length", "waist_ease", "hem_width"] and fit["loss_fitted"] < fit["loss_template"]
     for name, true in truth["measurements_m"].items():
         k = fit["names"].index(name)
         left = {"length": 0.25, "hem_width": 0.75}[name]
-        assert abs(fit["fitted_m"][k] - true) < left * abs(fit["template_m"][k] - true), (name, fit)
+        assert abs(fit["fitted_m"][k] - true) < left * abs(sizing["template_m"][name] - true), (name, fit, sizing)
+    # the fit started from the template re-made at the length the hem's height gives
+    # (template_sizing.py): nearer the truth than the template's, and draped nearer the scan
+    assert sizing["kept"] and fit["template_m"][0] == pytest.approx(sizing["measurements_m"]["length"])
+    true_length = truth["measurements_m"]["length"]
+    assert abs(sizing["measurements_m"]["length"] - true_length) < 0.5 * abs(sizing["template_m"]["length"] - true_length)
+    assert sizing["chamfer_cm"] < m["chamfer_initial_cm"]
     assert m["mesh_quality_min"] > 0.05
     assert [s for s in ("preprocess", "body", "drape", "optimize", "metrics") if s in stages] == \
         ["preprocess", "body", "drape", "optimize", "metrics"]
@@ -294,8 +300,8 @@ def test_options_from_node_dict_and_config():
 def test_a_recovery_whose_start_does_not_drape_warns_and_returns_the_template(monkeypatch):
     """Fault injected: the objective cannot be evaluated at all (every drape of the optimizer
     fails). The recovery does not raise: the optimization stops before its first step, the
-    result says so in its warnings with the drape's reason, and the assets are the template's
-    pattern on its equilibrium (what was produced is kept)."""
+    result says so in its warnings with the drape's reason, and the assets are the starting
+    template's pattern on its equilibrium (what was produced is kept)."""
     from diffavatar_core.pipeline import coopt
 
     def failing_call(self, params):
@@ -305,7 +311,11 @@ def test_a_recovery_whose_start_does_not_drape_warns_and_returns_the_template(mo
     assert r.metrics["stopped"] == "invalid_start" and r.iterations == 0
     assert any("stopped after 0 of 2 iterations" in w and "injected" in w for w in r.warnings), r.warnings
     assert np.isfinite(r.metrics["chamfer_final_cm"]) and r.garment_vertices.shape[1] == 3
-    assert abs(r.metrics["pattern_area_m2"] / r.metrics["template_area_m2"] - 1) < 1e-9   # the template's pattern
+    # the pattern the optimization started from: the template as re-made by the sizing (its mesh
+    # is r.template), not the one first selected
+    assert r.metrics["template_sizing"]["kept"]
+    assert abs(r.metrics["pattern_area_m2"] / r.template.total_area() - 1) < 1e-9
+    assert abs(r.metrics["pattern_area_m2"] / r.metrics["template_area_m2"] - 1) > 0.01
 
 
 def test_a_result_farther_from_the_scan_than_the_template_says_so(recovered, monkeypatch):
@@ -323,7 +333,7 @@ def test_a_result_farther_from_the_scan_than_the_template_says_so(recovered, mon
         calls.append(1)
         return real(*args, **kwargs) + (0.01 if len(calls) == 2 else 0.0)   # m; the 2nd call is the final drape's
     monkeypatch.setattr(rec, "chamfer_meshes", final_worse)
-    r = recover(SAMPLE, {"units": "cm", "iterations": 2})
+    r = recover(SAMPLE, {"units": "cm", "iterations": 2, "template_sizing": False})   # (sizing measures drapes too)
     assert r.metrics["chamfer_final_cm"] > r.metrics["chamfer_initial_cm"]
     msg = f"farther from the scan (Chamfer {r.metrics['chamfer_final_cm']:.3f} cm) than the template's initial " \
           f"drape ({r.metrics['chamfer_initial_cm']:.3f} cm)"
@@ -350,7 +360,7 @@ def test_an_initial_drape_that_face_planes_do_not_converge_continues_with_valley
         return r, steps
     monkeypatch.setattr(rec, "_initial_drape", face_fails)
     r = recover(SAMPLE, {"units": "cm", "iterations": 2})
-    assert tried == [False, True]
+    assert tried[:2] == [False, True] and all(tried[2:])   # then the template sizing's drapes, with valley too
     assert any("did not converge with face contact planes (injected" in w for w in r.warnings), r.warnings
     assert r.material.contact_normals == "valley" == r.metrics["output_drape"]["contact_normals"]
     assert "face_plane_move_m" not in r.metrics["output_drape"]
@@ -368,6 +378,27 @@ def test_an_initial_drape_that_face_planes_do_not_converge_continues_with_valley
     monkeypatch.setattr(rec, "_initial_drape", both_fail)
     with pytest.raises(RecoveryError, match="initial drape of template 'skirt'.*injected.*with valley contacts too: injected"):
         recover(SAMPLE, {"units": "cm", "iterations": 2})
+
+
+def test_a_sized_template_that_does_not_drape_leaves_the_selected_one(monkeypatch):
+    """Fault injected: every drape after the first (the template sizing's) reports no
+    convergence. The recovery says so in metrics.template_sizing and goes on from the selected
+    template's drape — its measurements are where the fit starts — to a result."""
+    import dataclasses
+    from diffavatar_core.pipeline import recovery as rec
+    real, calls = rec._initial_drape, []
+
+    def later_fail(cloth, opts, cancel):
+        r, steps = real(cloth, opts, cancel)
+        calls.append(1)
+        return (r if len(calls) == 1 else dataclasses.replace(r, converged=False, message="injected")), steps
+    monkeypatch.setattr(rec, "_initial_drape", later_fail)
+    r = recover(SAMPLE, {"units": "cm", "iterations": 1})
+    sizing, fit = r.metrics["template_sizing"], r.metrics["measurement_fit"]
+    assert len(calls) == 2 and not sizing["kept"] and sizing["rounds"][0]["converged"] is False
+    assert fit["template_m"] == [sizing["template_m"][k] for k in fit["names"]]
+    assert r.template.total_area() == pytest.approx(r.metrics["template_area_m2"], rel=1e-12)
+    assert np.isfinite(r.metrics["chamfer_final_cm"])
 
 
 def test_cancel_stops_the_job():
