@@ -73,7 +73,7 @@ def _run(args) -> int:
             bar.close()
     out = write_result(result, args.out, scan=result.scan_mesh)
     m = result.metrics
-    fit = m.get("measurement_fit") or {}
+    fit, sizing = m.get("measurement_fit") or {}, m.get("template_sizing") or {}
     print(json.dumps({
         "output_dir": str(out), "garment_type": result.garment_type, "template": result.template_name,
         "iterations": result.iterations, "stopped": m.get("stopped"), "wall_s": round(result.wall_s, 1),
@@ -81,6 +81,7 @@ def _run(args) -> int:
         "chamfer_initial_cm": round(m["chamfer_initial_cm"], 3), "chamfer_final_cm": round(m["chamfer_final_cm"], 3),
         "bending_stiffness_Nm": result.material.bending_stiffness, "mesh_quality_min": round(m["mesh_quality_min"], 3),
         "seam_length_mismatch_max_pct": round(m["seam_length_mismatch_max_pct"], 3), "ssim": m.get("ssim"),
+        "template_sized_m": {n: round(v, 4) for n, v in (sizing.get("measurements_m") or {}).items()} if sizing.get("kept") else {},
         "template_measurements_m": {n: round(v, 4) for n, v in zip(fit.get("names", []), fit.get("fitted_m", []))},
         "warnings": result.warnings}, indent=2))
     print(f"outputs in {out}/: result.json, pattern.json/.svg/.png, garment_rest.obj, garment_draped.obj, "
