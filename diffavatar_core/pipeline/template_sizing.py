@@ -8,7 +8,8 @@ keeps its fold state: a sleeve 8 cm too long ends in a cuff flapping past the ha
 the gradient cannot shorten out of (the benchmark's long sleeve stopped at 0.523 m, truth 0.495,
 the template 0.58; docs/pipeline.md). Here the template is re-made at the estimated
 measurements and draped fresh instead, as the template itself was; the recovery starts from it
-when φ's data terms (ρ L_boundary + σ L_interior) are lower there (recovery._data_loss).
+when that drape is nearer the scan (Chamfer distance): a stuck fit shows as a drape far from the
+scan, and the folds of the nearer start are those no gradient step would find.
 
 First-order model (inextensible cloth hanging from the body): an opening that hangs Δ farther
 along the body needs Δ more cloth above it.
