@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..pattern.templates import FIT_MEASUREMENTS, template_measurements
+from ..pattern.templates import FIT_MEASUREMENTS, default_landmarks, template_measurements
 
 MAX_CHANGE = 0.3    # an estimate stays within ×(1 ± this) of the template's value
 MIN_CHANGE = 0.005  # m: smaller estimated changes are not worth another drape
@@ -39,7 +39,7 @@ def _centre(points) -> np.ndarray:
 def size_from_openings(name: str, landmarks, x, garment_loops: dict, scan_loops: dict,
                        measurements: dict | None = None) -> dict:
     """{measurement: estimate (m)} for built-in template `name` on a body with `landmarks`
-    (BodyLandmarks), from its drape x (V, 3) m made with the default measurements overridden by
+    (BodyLandmarks; None: the templates' default body's), from its drape x (V, 3) m made with the default measurements overridden by
     `measurements` (m; a previous estimate: applied again, the estimate converges as a fixed-point
     iteration where one step falls short, e.g. a long sleeve bunching at the wrist) —
     garment_loops: opening name → vertex indices of x — against the scan's openings scan_loops
@@ -49,6 +49,7 @@ def size_from_openings(name: str, landmarks, x, garment_loops: dict, scan_loops:
     if name not in FIT_MEASUREMENTS:
         return {}
     fitted = FIT_MEASUREMENTS[name]
+    landmarks = landmarks or default_landmarks()
     default = template_measurements(name, landmarks)
     m0 = template_measurements(name, landmarks, **(measurements or {}))
     x = np.asarray(x, float)

@@ -71,4 +71,6 @@ def test_estimates_stay_within_bounds_and_need_both_openings(body):
     assert size_from_openings("skirt", lm, x, g.boundaries, low) == {"length": pytest.approx((1 + MAX_CHANGE) * m0.length)}
     assert size_from_openings("skirt", lm, x, g.boundaries, {"waist": loops["waist"]}) == {}
     assert size_from_openings("pants", lm, x, g.boundaries, low) == {}
+    assert size_from_openings("skirt", None, x, g.boundaries, low) == \
+        {"length": pytest.approx((1 + MAX_CHANGE) * template_measurements("skirt", None).length)}
     assert size_from_openings("my_template.obj", lm, x, g.boundaries, low) == {}
