@@ -39,13 +39,14 @@ def _centre(points) -> np.ndarray:
 def size_from_openings(name: str, landmarks, x, garment_loops: dict, scan_loops: dict,
                        measurements: dict | None = None) -> dict:
     """{measurement: estimate (m)} for built-in template `name` on a body with `landmarks`
-    (BodyLandmarks; None: the templates' default body's), from its drape x (V, 3) m made with the default measurements overridden by
-    `measurements` (m; a previous estimate: applied again, the estimate converges as a fixed-point
-    iteration where one step falls short, e.g. a long sleeve bunching at the wrist) —
-    garment_loops: opening name → vertex indices of x — against the scan's openings scan_loops
-    (name → (K, 3) m). Only measurements the template fits (FIT_MEASUREMENTS) whose opening both
-    sides show, and whose estimate moves them by at least MIN_CHANGE from the drape's; bounded
-    to ×(1 ± MAX_CHANGE) of the template's default; empty when nothing is to be changed."""
+    (BodyLandmarks; None: the templates' default body's), from its drape x (V, 3) m made with the
+    default measurements overridden by `measurements` (m; a previous estimate: applied again, the
+    estimate converges as a fixed-point iteration where one step falls short, e.g. a long sleeve
+    bunching at the wrist) — garment_loops: opening name → vertex indices of x — against the
+    scan's openings scan_loops (name → (K, 3) m). Only measurements the template fits
+    (FIT_MEASUREMENTS) whose opening both sides show, and whose estimate moves them by at least
+    MIN_CHANGE from the drape's; bounded to ×(1 ± MAX_CHANGE) of the template's default; empty
+    when nothing is to be changed."""
     if name not in FIT_MEASUREMENTS:
         return {}
     fitted = FIT_MEASUREMENTS[name]
