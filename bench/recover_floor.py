@@ -60,7 +60,8 @@ def truth_handles(g, cage, gt) -> np.ndarray:
 def floor_case(template: str, seed: int, bend: float, args) -> dict:
     planes = args.contact_normals
     case = make_case(template, seed=seed, bend_stiffness=bend, contact_normals=planes)
-    g = make_template(template, landmarks=BodyModel.default().landmarks(case.body_params), edge_length=0.04)
+    lm = BodyModel.default().landmarks(case.body_params)
+    g = make_template(template, landmarks=lm, edge_length=0.04)
     cage = build_cage(g)
     rest_truth = cage.rest(truth_handles(g, cage, case.garment))
     # the scan as the recovery sees it (bench/recover.py's chamfer_truth_cm is truth_drape_cm here)
@@ -93,14 +94,14 @@ def floor_case(template: str, seed: int, bend: float, args) -> dict:
     out["truth_outline_fresh_cm"] = cm(c.x, g.faces)
     out["truth_retriangulated_cm"] = {}
     for f in args.retriangulate:   # the truth's own parameters on another mesh of the same pattern, draped as it was
-        gt = make_template(template, landmarks=BodyModel.default().landmarks(case.body_params), edge_length=0.04 * f,
-                           **case.measurements)
+        gt = make_template(template, landmarks=lm, edge_length=0.04 * f, **case.measurements)
         try:
             c, _ = drape_truth(gt, (case.body_vertices, case.body_faces), bend, compliance_scale=case.compliance_scale,
                                contact_normals=planes)
-            out["truth_retriangulated_cm"][f"{0.04 * f:.4g}"] = cm(c.x, gt.faces)
+            measured = cm(c.x, gt.faces)
         except RuntimeError as exc:   # slid off the body or did not converge: said, not measured
-            out["truth_retriangulated_cm"][f"{0.04 * f:.4g}"] = str(exc)
+            measured = str(exc)
+        out["truth_retriangulated_cm"][f"{0.04 * f:.4g}"] = measured
     return out
 
 

@@ -25,7 +25,6 @@ from .. import _core
 from .._validate import is_cancelled
 from ..body import BodyModel
 from ..body.fitting import fit_body
-from ..loss import boundary_loss, garment_samples, interior_loss
 from ..metrics import chamfer_meshes, mesh_quality, surface_distances
 from ..pattern.cage import build_cage
 from ..pattern.export import pattern_assets
@@ -229,16 +228,6 @@ def check_rests_on_body(x, body_vertices, body_faces, template_name: str, cancel
     return gap
 
 
-def _data_loss(x, g: Garment, data: ScanData, opts: RecoverOptions) -> float:
-    """ρ L_boundary + σ L_interior (paper §4.2.5; m², opts' weights) of a drape x (V, 3) m of
-    garment g against the scan: the data terms of φ as the co-optimization measures them
-    (recorded for each start template sizing considers)."""
-    w = opts.weights
-    lb = boundary_loss(x, g.boundaries, data.boundaries, opts.boundary_scale).value if data.boundaries else 0.0
-    li = interior_loss(x, g.faces, garment_samples(x, g.faces, opts.samples, seed=0), data.interior_points).value
-    return float(w.boundary * lb + w.interior * li)
-
-
 def _assets_drape(g, co, material, body_vertices, body_faces, opts, cancel):
     """The co-optimization's drape re-solved on a Cloth of the recovered pattern and re-anchored
     at itself until it stays put (Cloth.self_anchor). The optimizer's equilibria hold anchor
@@ -372,19 +361,19 @@ def _recover(scan, opts: RecoverOptions, ctl: "_Control", body_model, t0: float)
     material = ClothMaterial(bend_stiffness=opts.bend_stiffness)
     early_warnings = []
 
-    def initial_drape(planes):
-        c = _garment_cloth(g, g.rest, g.x0, material, (body_vertices, model.faces),
+    def initial_drape(garment, planes):
+        c = _garment_cloth(garment, garment.rest, garment.x0, material, (body_vertices, model.faces),
                            masses_follow_rest=opts.masses_follow_rest, contact_normals=planes)
         c.sew(cancel=ctl.token)
         return (c,) + _initial_drape(c, opts, ctl.token)
 
-    cloth, r, drape_steps = initial_drape(opts.contact_normals)
+    cloth, r, drape_steps = initial_drape(g, opts.contact_normals)
     also = ""   # what the valley retry gave, for the error below
     if not r.converged and not r.diverged and opts.contact_normals == "face":
         # face planes that alternate over concave body edges can keep Newton from converging (a
         # benchmark skirt: residual 13.4 after 3 rounds); both faces' planes there end the cycle
         face_message = f"{r.message}; residual {r.residual:.2e}"
-        cloth_v, r_v, steps_v = initial_drape("valley")
+        cloth_v, r_v, steps_v = initial_drape(g, "valley")
         if r_v.converged:
             cloth, r, drape_steps = cloth_v, r_v, steps_v
             opts = opts.with_(contact_normals="valley")
@@ -406,48 +395,41 @@ def _recover(scan, opts: RecoverOptions, ctl: "_Control", body_model, t0: float)
 
     # template sizing: length and sleeve length from the scan's openings, draped fresh -------------
     sizes, sizing = {}, None
-    if (opts.template_sizing and opts.iterations and opts.measurement_fit_iterations and template_name in FIT_MEASUREMENTS
-            and remake is not None and template_name in TEMPLATES):
+    if opts.template_sizing and opts.iterations and opts.measurement_fit_iterations and template_name in FIT_MEASUREMENTS:
         m_default = template_measurements(template_name, lm)
-        best = chamfer_initial
         sizing = {"template_m": {k: float(getattr(m_default, k)) for k in FIT_MEASUREMENTS[template_name]},
-                  "data_loss": _data_loss(x_initial, g, data, opts), "rounds": [], "kept": False}
-        g_now, x_now, now = g, x_initial, {}
+                  "rounds": [], "kept": False}
+        best, g_now, x_now, now = chamfer_initial, g, x_initial, {}
         for _ in range(SIZING_ROUNDS):   # each from the last round's drape (template_sizing.py)
             estimate = size_from_openings(template_name, lm, x_now, g_now.boundaries, data.boundaries, measurements=now)
             if not estimate:
                 break
             now = {**now, **estimate}
-            ctl.report("drape")
             g_now = make_template(template_name, landmarks=lm, edge_length=opts.edge_length, **now)
-            c = _garment_cloth(g_now, g_now.rest, g_now.x0, material, (body_vertices, model.faces),
-                               masses_follow_rest=opts.masses_follow_rest, contact_normals=opts.contact_normals)
-            c.sew(cancel=ctl.token)
-            r_now, _ = _initial_drape(c, opts, ctl.token)
+            c, r_now, _ = initial_drape(g_now, opts.contact_normals)
             ctl.check("drape")
             entry = {"measurements_m": dict(now), "converged": bool(r_now.converged)}
             sizing["rounds"].append(entry)
             if not r_now.converged:
                 break
             x_now = np.array(c.x)
-            gap = float(surface_distances(x_now, body_vertices, model.faces, cancel=ctl.token).min())
-            if gap > SUPPORT_GAP:   # fell off the body: no start, and no base for another round
-                entry["off_body_m"] = gap
+            try:
+                check_rests_on_body(x_now, body_vertices, model.faces, template_name, ctl.token)
+            except RecoveryError as exc:   # fell off the body: no start, and no base for another round
+                entry["off_body"] = str(exc)
                 break
-            entry["data_loss"] = _data_loss(x_now, g_now, data, opts)
             entry["chamfer_cm"] = cm * chamfer_meshes(x_now, g_now.faces, Vg_scan, Fg_scan, samples=nsamp,
                                                       cancel=ctl.token)
             # the start nearest the scan (Chamfer): the measurement fit corrects the outline from either
             # start unless its warm-started drapes are stuck in a fold state far from the scan, which
             # is what the Chamfer distance shows; the folds themselves no gradient step changes, so
-            # the start whose folds are nearer is kept (benchmark t-shirt 101: the sized start had the
-            # lower data terms, its hem 6 cm nearer, but other folds — ratio 0.57 against 0.50)
+            # the start whose folds are nearer is kept (benchmark t-shirt 101: a start chosen by φ's
+            # data terms, its hem 6 cm nearer but other folds, ended at ratio 0.57 against 0.50)
             if entry["chamfer_cm"] < best:
                 best, g, cloth, x_initial, sizes = entry["chamfer_cm"], g_now, c, x_now, dict(now)
-                sizing["chamfer_cm"] = best
         if sizes:
             remake = partial(make_template, template_name, landmarks=lm, **sizes)
-            sizing.update(kept=True, measurements_m=sizes)
+            sizing.update(kept=True, measurements_m=sizes, chamfer_cm=best)
 
     # co-optimization ------------------------------------------------------------------------
     cage = build_cage(g) if opts.parametrization == "cage" else None
