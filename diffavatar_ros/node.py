@@ -34,6 +34,7 @@ import time
 LARGE_DATA_ENV = "FASTDDS_BUILTIN_TRANSPORTS"
 EXIT_GRACE_S = 20.0   # s from a stop signal to the end of the process, at most
 SPIN_PERIOD_S = 0.1   # s between two checks for a stop signal
+RESULT_FLUSH_S = 0.25  # s the executor spins on after the last goal's result is set, before the server goes
 
 
 def configure_large_data_transport() -> str:
@@ -401,6 +402,13 @@ class DiffAvatarNode(Node):
         self._queue.shutdown(timeout)
         deadline = time.monotonic() + 1.0
         while self._goal_jobs and time.monotonic() < deadline and self.context.ok():
+            self._wake.trigger()
+            time.sleep(0.01)
+        # a goal leaves _goal_jobs inside its coroutine; the action server sends its result only
+        # after the coroutine returns, from a callback of a later spin: spin on a little before the
+        # server is destroyed (a CI run lost the stop test's cancelled result to that race)
+        flush = time.monotonic() + RESULT_FLUSH_S
+        while time.monotonic() < flush and self.context.ok():
             self._wake.trigger()
             time.sleep(0.01)
 
