@@ -16,7 +16,8 @@ handles start on the template's outline, measurement_fit_iterations 0: a referen
 fixed_masses (the template's masses throughout); stretch (the stretch compliances optimized too,
 `stretch: garment`; truths with other compliances by --compliance-scales); robust_boundary (the
 boundary term robust beyond 1 cm, boundary_scale 0.01 m); unsized (no template sizing from the scan's openings,
-template_sizing false: a reference run).
+template_sizing false: a reference run); interior_K (σ, the interior Chamfer's weight, = K per m²: interior_1
+is the default before stop 41).
 
 The floor: each case's truth.chamfer_truth_cm is the truth's own drape against the scan (the scan's
 noise, resampling and holes; SyntheticCase.truth_chamfer_cm), so each variant's chamfer_ratio_floor
@@ -57,7 +58,7 @@ VARIANTS = ("full", "no_cage", "no_seam", "no_curvature")
 # scan-guided drapes, without the template measurement fit, with the template's masses throughout, with the stretch
 # compliances optimized, with a 10× larger L-BFGS unit for the bending (1 decade), with the robust boundary term, and without the template sizing
 EXTRA_VARIANTS = ("euclidean", "no_cage_euclidean", "unguided", "no_measurement_fit", "fixed_masses", "stretch", "bending_step_1",
-                  "robust_boundary", "unsized")
+                  "robust_boundary", "unsized", "interior_K")   # interior_K: σ = K per m², e.g. interior_1
 
 
 def corner_edge_lengths(g, corners_from=None) -> list:
@@ -125,6 +126,8 @@ def options_for(variant, iterations, output_edge=0.0, friction=None, contact_nor
         return o.with_(stretch="garment")
     if variant == "robust_boundary":   # an opening hung elsewhere (a cuff over the hand) pulls less beyond 1 cm
         return o.with_(boundary_scale=0.01)
+    if variant.startswith("interior_"):   # σ, the interior Chamfer's weight (per m²), set to the number
+        return o.with_(weights=Weights(**{**o.weights.__dict__, "interior": float(variant[len("interior_"):])}))
     if variant == "bending_step_1":   # L-BFGS's unit of log10 bending: 1 decade instead of 0.1
         return o.with_(step_sizes=StepSizes(**{**o.step_sizes.__dict__, "log10_bending": 1.0}))
     if variant != "full":
