@@ -19,7 +19,7 @@ STRETCH = ("fixed", "garment")
 class Weights:
     boundary: float = 1.0
     boundary_length: float = 1.0
-    interior: float = 1.0
+    interior: float = 30.0
     seam: float = 1000.0
     curvature: float = 0.1
     body_data: float = 1.0
