@@ -56,7 +56,8 @@ VARIANTS = ("full", "no_cage", "no_seam", "no_curvature")
 # not ablations of the paper (but no_cage_euclidean, its "w/o control cage" without our H¹ metric): the reference
 # runs of the L-BFGS metric before the H¹ one, of the recovery without
 # scan-guided drapes, without the template measurement fit, with the template's masses throughout, with the stretch
-# compliances optimized, with a 10× larger L-BFGS unit for the bending (1 decade), with the robust boundary term, and without the template sizing
+# compliances optimized, with a 10× larger L-BFGS unit for the bending (1 decade), with the robust boundary term, without the template sizing,
+# and with another weight σ of the interior term
 EXTRA_VARIANTS = ("euclidean", "no_cage_euclidean", "unguided", "no_measurement_fit", "fixed_masses", "stretch", "bending_step_1",
                   "robust_boundary", "unsized", "interior_K")   # interior_K: σ = K per m², e.g. interior_1
 
@@ -127,7 +128,11 @@ def options_for(variant, iterations, output_edge=0.0, friction=None, contact_nor
     if variant == "robust_boundary":   # an opening hung elsewhere (a cuff over the hand) pulls less beyond 1 cm
         return o.with_(boundary_scale=0.01)
     if variant.startswith("interior_"):   # σ, the interior Chamfer's weight (per m²), set to the number
-        return o.with_(weights=Weights(**{**o.weights.__dict__, "interior": float(variant[len("interior_"):])}))
+        try:
+            sigma = float(variant[len("interior_"):])
+        except ValueError:
+            raise ValueError(f"variant {variant!r}: interior_K needs a number K (σ per m²), e.g. interior_1") from None
+        return o.with_(weights=Weights(**{**o.weights.__dict__, "interior": sigma}))
     if variant == "bending_step_1":   # L-BFGS's unit of log10 bending: 1 decade instead of 0.1
         return o.with_(step_sizes=StepSizes(**{**o.step_sizes.__dict__, "log10_bending": 1.0}))
     if variant != "full":
