@@ -13,6 +13,7 @@ from diffavatar_core.pattern.cage import build_cage
 from diffavatar_core.pipeline import RecoverOptions, RecoveryError, recover
 from diffavatar_core.pipeline.coopt import CoOptObjective
 from diffavatar_core.pipeline.facing import facing_yaw, turned_params, yaw_rotation
+from diffavatar_core.pipeline.options import Weights
 from diffavatar_core.pipeline.output import write_result
 from diffavatar_core.demo import SAMPLE, TRUTH
 from diffavatar_core.scan import ImplausibleSizeError, LabelError, NoGarmentError, NonFiniteError, ScanError
@@ -600,11 +601,13 @@ def test_try_initial_redrapes_from_the_template_drape(skirt_problem):
     parameters that starts at the template's initial drape, and keeps the lower: the candidate does
     not depend on where the warm starts have wandered (the same φ from three of them), and a warm
     start left in a worse state — a 5% smaller skirt's drape, which the template's own parameters
-    re-drape from into a state farther from the scan — is replaced by it."""
+    re-drape from into a state farther from the scan — is replaced by it. φ with σ = 1 (the interior
+    term's weight this scenario was measured with; the default 30 puts the two states 16% apart)."""
     model, p, g, cloth, pts, loops = skirt_problem
     x_init = np.array(cloth.x)
-    obj = CoOptObjective(cloth, g, pts, loops, RecoverOptions.from_config(residual_tol=1e-8, samples=200),
-                         cage=build_cage(g))
+    o = RecoverOptions.from_config(residual_tol=1e-8, samples=200)
+    o = o.with_(weights=Weights(**{**o.weights.__dict__, "interior": 1.0}))
+    obj = CoOptObjective(cloth, g, pts, loops, o, cage=build_cage(g))
     theta0 = obj.initial_params()
     candidates = []
     for f in (1.04, 1.08, 0.95):
@@ -620,8 +623,7 @@ def test_try_initial_redrapes_from_the_template_drape(skirt_problem):
         assert np.array_equal(obj.x_warm, obj.x_last if used else x_before)
         candidates.append(v_init)
     assert candidates[0] == candidates[1] == candidates[2]
-    # the 0.95 skirt's state is the worse one: φ 16% higher (σ = 30; over 20% at σ = 1, before stop 41)
-    assert used and v_warm > 1.1 * v_init, (v_warm, v_init)
+    assert used and v_warm > 1.2 * v_init, (v_warm, v_init)   # the 0.95 skirt's state is the worse one
 
 
 def test_body_after_holds_the_body_first(skirt_problem):
