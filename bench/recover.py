@@ -17,7 +17,9 @@ fixed_masses (the template's masses throughout); stretch (the stretch compliance
 `stretch: garment`; truths with other compliances by --compliance-scales); robust_boundary (the
 boundary term robust beyond 1 cm, boundary_scale 0.01 m); unsized (no template sizing from the scan's openings,
 template_sizing false: a reference run); interior_K (σ, the interior Chamfer's weight, = K per m²: interior_1
-is the default before stop 41).
+is the default before stop 41); to_surface / to_points (L_interior's garment samples measured to the scan's
+garment surface / to the nearest of its interior samples, `interior_to`); guided_K (the scan-guided drapes'
+spring stiffness κ_g = K per s², e.g. guided_1e5).
 
 The floor: each case's truth.chamfer_truth_cm is the truth's own drape against the scan (the scan's
 noise, resampling and holes; SyntheticCase.truth_chamfer_cm), so each variant's chamfer_ratio_floor
@@ -59,7 +61,8 @@ VARIANTS = ("full", "no_cage", "no_seam", "no_curvature")
 # compliances optimized, with a 10× larger L-BFGS unit for the bending (1 decade), with the robust boundary term, without the template sizing,
 # and with another weight σ of the interior term
 EXTRA_VARIANTS = ("euclidean", "no_cage_euclidean", "unguided", "no_measurement_fit", "fixed_masses", "stretch", "bending_step_1",
-                  "robust_boundary", "unsized", "interior_K")   # interior_K: σ = K per m², e.g. interior_1
+                  "robust_boundary", "unsized", "interior_K", "to_surface", "to_points",
+                  "guided_K")   # guided_K: guided_stiffness = K per s², e.g. guided_1e5   # interior_K: σ = K per m², e.g. interior_1
 
 
 def corner_edge_lengths(g, corners_from=None) -> list:
@@ -133,6 +136,14 @@ def options_for(variant, iterations, output_edge=0.0, friction=None, contact_nor
         except ValueError:
             raise ValueError(f"variant {variant!r}: interior_K needs a number K (σ per m²), e.g. interior_1") from None
         return o.with_(weights=Weights(**{**o.weights.__dict__, "interior": sigma}))
+    if variant.startswith("guided_"):   # the scan-guided drapes' spring stiffness (1/s²), set to the number
+        try:
+            kappa = float(variant[len("guided_"):])
+        except ValueError:
+            raise ValueError(f"variant {variant!r}: guided_K needs a number K (1/s²), e.g. guided_1e5") from None
+        return o.with_(guided_stiffness=kappa)
+    if variant in ("to_surface", "to_points"):   # garment samples measured to the scan's surface / nearest scan point
+        return o.with_(interior_to=variant[3:])
     if variant == "bending_step_1":   # L-BFGS's unit of log10 bending: 1 decade instead of 0.1
         return o.with_(step_sizes=StepSizes(**{**o.step_sizes.__dict__, "log10_bending": 1.0}))
     if variant != "full":

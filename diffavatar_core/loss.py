@@ -2,7 +2,8 @@
 simulated garment's vertex positions X (#V×3, m):
 
 - interior: symmetric squared Chamfer distance between the garment surface and the scan's garment
-  points (C++ `chamfer_loss`);
+  points — or, given the scan's garment mesh, from the garment's samples to that surface (C++
+  `chamfer_loss`);
 - boundary: for each garment boundary loop matched to a scan boundary loop (by name: 'hem',
   'neckline', 'sleeve_left', ...), a symmetric squared curve-to-curve Chamfer distance between the
   two closed polylines — it pulls hem heights and sleeve lengths to the scan's;
@@ -58,14 +59,19 @@ class InteriorLoss:
 
 
 def interior_loss(X, F, samples: GarmentSamples, scan_points, trim_distance: float = 0.0,
-                  progress=None, cancel=None) -> InteriorLoss:
+                  progress=None, cancel=None, scan_surface=None) -> InteriorLoss:
     """Symmetric squared Chamfer between garment samples/surface and scan points (m), pairs
-    farther than `trim_distance` (m, ≤ 0: none) ignored. See cpp/loss/chamfer_loss.hpp."""
+    farther than `trim_distance` (m, ≤ 0: none) ignored. scan_surface (V (N, 3) m, F (M, 3)):
+    the scan's garment mesh; given, the garment samples are measured to its closest points
+    instead of to the nearest of `scan_points`. See cpp/loss/chamfer_loss.hpp."""
     X, F = val.mesh("X", X, "F", F)
     T = val.points("scan_points", scan_points)
     if samples.tri.size and (samples.tri.min() < 0 or samples.tri.max() >= len(F)):
         raise ValueError("samples: triangle index out of range for F")
-    r = _core.chamfer_loss(X, F, samples.tri, samples.bary, T, float(trim_distance), progress, cancel)
+    surface = ()
+    if scan_surface is not None:
+        surface = val.mesh("scan_surface vertices", scan_surface[0], "scan_surface faces", scan_surface[1])
+    r = _core.chamfer_loss(X, F, samples.tri, samples.bary, T, float(trim_distance), progress, cancel, *surface)
     return InteriorLoss(r.value, r.garment_to_scan, r.scan_to_garment, r.garment_trimmed, r.scan_trimmed,
                         np.array(r.grad))
 

@@ -72,7 +72,8 @@ class CoOptObjective:
     body_model/body_params: ν, ψ are parameters when given and opts.optimize_body;
     body_points (N, 3) m: the scan's body-labelled points (full scans; None or empty: no L_body);
     scan_mesh (V (N, 3) m, F (M, 3)): the scan's garment surface, for scan-guided drapes
-    (try_guided; None: none).
+    (try_guided; None: none) and, with opts.interior_to 'surface', the target of the garment
+    samples in L_interior (None: they go to the nearest of scan_points).
     Parameter groups: handles ((H·2,) m), log_bend ((1,) or (G,) log10 N·m), log_stretch ((3,)
     log10 m/N, opts.stretch 'garment'), shape ((K,)), pose ((J·3,) rad)."""
 
@@ -185,7 +186,8 @@ class CoOptObjective:
         stretch = self.stretch(params)
         self.drape_at(rest, bend, bv, stretch)
         x = np.array(self.cloth.x)
-        li = interior_loss(x, self.faces, self.samples, self.scan_points)
+        surface = self.scan_mesh if o.interior_to == "surface" else None
+        li = interior_loss(x, self.faces, self.samples, self.scan_points, scan_surface=surface)
         lb = boundary_loss(x, self.loops, self.scan_loops, o.boundary_scale) if self.loops else None
         ll = boundary_length_loss(x, self.loops, self.scan_lengths, self.length_tol) if self.loops else None
         ls, gs = self.seam_reg.value_and_grad(rest)

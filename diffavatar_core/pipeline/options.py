@@ -13,6 +13,7 @@ PARAMETRIZATIONS = ("cage", "vertices")
 OPTIMIZERS = ("lbfgs", "adam")
 BENDING = ("garment", "panel", "fixed")
 STRETCH = ("fixed", "garment")
+INTERIOR_TO = ("surface", "points")
 
 
 @dataclass(frozen=True)
@@ -58,6 +59,7 @@ class RecoverOptions:
     step_sizes: StepSizes = field(default_factory=StepSizes)
     bend_stiffness: float = 5e-6
     samples: int = 2000
+    interior_to: str = "points"
     drape_steps: int = 200
     drape_rounds: int = 3
     drape_iterations: int = 40
@@ -133,6 +135,8 @@ class RecoverOptions:
             bad("bending", f"must be one of {BENDING}")
         if self.stretch not in STRETCH:
             bad("stretch", f"must be one of {STRETCH}")
+        if self.interior_to not in INTERIOR_TO:
+            bad("interior_to", f"must be one of {INTERIOR_TO}")
         if self.units not in ("m", "cm", "mm"):
             bad("units", "must be m, cm or mm")
         if self.up not in ("y", "z"):

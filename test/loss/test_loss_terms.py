@@ -69,6 +69,39 @@ def test_trimming_ignores_floating_fragments():
     assert untrimmed.value > 100 * clean.value
 
 
+def test_interior_loss_to_the_scan_surface_gradient_matches_central_differences():
+    X, F, _ = _sheet()
+    S, SF, _ = _sheet(n=9, seed=7)   # another bumpy sheet as the scan's surface, 1 cm above
+    S = S + [0.01, -0.02, 0.01]
+    scan = np.random.default_rng(1).random((150, 3)) * [0.3, 0.3, 0.05] + [0, 0, 0.01]
+    samples = loss.garment_samples(X, F, 200, seed=2)
+    _fd_check(lambda Y: (lambda r: (r.value, r.grad))(loss.interior_loss(Y, F, samples, scan, scan_surface=(S, SF))), X)
+
+
+def test_interior_loss_to_the_scan_surface_is_the_true_distance_without_the_points_floor():
+    """A flat garment 3 mm from a parallel flat scan: to the scan's surface every sample is 3 mm
+    away (garment_to_scan = h² exactly, its gradient along the normal only); to 400 points of
+    that surface ~1.5 cm apart the nearest is farther — the sampling floor the surface removes."""
+    X, F, _ = _sheet()
+    X[:, 2] = 0.0
+    h = 0.003
+    Ss, SFs, _ = _sheet(n=21)
+    Ss[:, 0:2] = Ss[:, 0:2] * 1.2 - 0.03   # the scan extends past the garment: no edge effects
+    Ss[:, 2] = h
+    samples = loss.garment_samples(X, F, 500, seed=4)
+    pts = loss.garment_samples(Ss, SFs, 400, seed=5).points(Ss, SFs)
+    surf = loss.interior_loss(X, F, samples, pts, scan_surface=(Ss, SFs))
+    near = loss.interior_loss(X, F, samples, pts)
+    assert surf.garment_to_scan == pytest.approx(h * h, rel=1e-9)
+    assert near.garment_to_scan > 4 * h * h
+    assert surf.scan_to_garment == near.scan_to_garment   # the other direction is unchanged
+    R, _ = np.linalg.qr(np.random.default_rng(6).normal(size=(3, 3)))
+    t = np.array([0.4, -1.0, 0.2])
+    moved = loss.interior_loss(X @ R.T + t, F, samples, pts @ R.T + t, scan_surface=(Ss @ R.T + t, SFs))
+    assert moved.value == pytest.approx(surf.value, rel=1e-9)
+    np.testing.assert_allclose(moved.grad, surf.grad @ R.T, atol=1e-12)
+
+
 def test_boundary_loss_gradient_matches_central_differences():
     X, F, loop = _sheet(n=7, seed=7)
     rng = np.random.default_rng(8)
@@ -134,6 +167,10 @@ def test_bad_inputs_are_named():
     s = loss.garment_samples(X, F, 10)
     with pytest.raises(ValueError, match="scan_points"):
         loss.interior_loss(X, F, s, np.zeros((0, 3)))
+    with pytest.raises(ValueError, match="scan_surface faces"):
+        loss.interior_loss(X, F, s, X, scan_surface=(X, F + len(X)))
+    with pytest.raises(ValueError, match="scan_surface vertices"):
+        loss.interior_loss(X, F, s, X, scan_surface=(np.full_like(X, np.nan), F))
     with pytest.raises(ValueError, match="hem"):
         loss.boundary_loss(X, {"hem": [0, 1]}, {"hem": X[:3]})
     with pytest.raises(ValueError, match="n"):

@@ -22,24 +22,31 @@ from diffavatar_core.sim.material import ClothMaterial
 from branch_difference import BRANCH_TOL, differences_on_one_branch
 
 
-@pytest.mark.parametrize("problem,boundary_scale", [("skirt_problem", 0.0), ("smooth_skirt_problem", 0.0),
-                                                    ("skirt_problem", 0.01)])
-def test_objective_gradient_matches_central_differences(problem, boundary_scale, request):
+@pytest.mark.parametrize("problem,boundary_scale,interior_to", [("skirt_problem", 0.0, "points"),
+                                                                ("smooth_skirt_problem", 0.0, "points"),
+                                                                ("skirt_problem", 0.01, "points"),
+                                                                ("skirt_problem", 0.0, "surface")])
+def test_objective_gradient_matches_central_differences(problem, boundary_scale, interior_to, request):
     """dφ/dθ of the full objective (boundary + interior + seam + curvature + body data + body
     prior; handles through W, log10 bending, body shape and pose through the skinning Jacobians)
     against central differences at a fixed warm start (the anchor of the equilibrium; the
     centre's own drape where the sides straddle a basin boundary of Newton from it,
     differences_on_one_branch), with either contact plane (the smooth one: measured ≤ 3e-8
     relative), and with the robust boundary term (boundary_scale 1 cm; the target skirt is 8%
-    longer, so its hem lies centimetres away, where the robust pull is a fraction of L2's)."""
+    longer, so its hem lies centimetres away, where the robust pull is a fraction of L2's), and
+    with L_interior's garment samples measured to a scan surface (interior_to 'surface': here the
+    start's drape scaled by 1.05 about its centre, centimetres from the cloth)."""
     model, p, g, cloth, pts, loops = request.getfixturevalue(problem)
-    opts = RecoverOptions.from_config(residual_tol=1e-8, samples=500, boundary_scale=boundary_scale)
+    opts = RecoverOptions.from_config(residual_tol=1e-8, samples=500, boundary_scale=boundary_scale,
+                                      interior_to=interior_to)
+    x0 = np.array(cloth.x)
+    scan_mesh = (x0.mean(axis=0) + 1.05 * (x0 - x0.mean(axis=0)), g.faces) if interior_to == "surface" else None
     rng = np.random.default_rng(0)
     bv = model.pose(p)   # "visible body": upper-body vertices of the true body, 2 mm noise
     body_pts = bv[bv[:, 1] > np.percentile(bv[:, 1], 70)]
     body_pts = body_pts + rng.normal(scale=0.002, size=body_pts.shape)
     obj = CoOptObjective(cloth, g, pts, loops, opts, cage=build_cage(g), body_model=model, body_params=p,
-                         body_points=body_pts)
+                         body_points=body_pts, scan_mesh=scan_mesh)
     x_base = np.array(cloth.x)
     theta = obj.initial_params()
     theta["handles"] = theta["handles"] + rng.normal(scale=0.001, size=theta["handles"].shape)
@@ -292,6 +299,8 @@ def test_options_from_node_dict_and_config():
     assert RecoverOptions.from_config(contact_normals="smooth").contact_normals == "smooth"
     with pytest.raises(ValueError, match="optimizer"):
         RecoverOptions.from_config(optimizer="sgd")
+    with pytest.raises(ValueError, match="interior_to"):
+        RecoverOptions.from_config(interior_to="mesh")
     with pytest.raises(ValueError, match="bending_after"):
         RecoverOptions.from_config(bending_after=-1)
     with pytest.raises(ValueError, match="body_trim_distance"):

@@ -11,7 +11,8 @@
 namespace diffavatar {
 
 ChamferLossResult chamfer_loss(const RefX3d& X, const RefX3i& F, const SurfaceSamples& samples,
-                               const RefX3d& scan, double trim_distance, RunControl& rc) {
+                               const RefX3d& scan, double trim_distance, RunControl& rc,
+                               const TriangleMeshBvh* scan_surface) {
   const Eigen::Index S = samples.tri.size(), T = scan.rows();
   if (samples.bary.rows() != S) throw std::invalid_argument("chamfer_loss: samples.tri and samples.bary differ in length");
   if (S == 0 || T == 0) throw std::invalid_argument("chamfer_loss: no garment samples or no scan points");
@@ -22,12 +23,15 @@ ChamferLossResult chamfer_loss(const RefX3d& X, const RefX3i& F, const SurfaceSa
   ChamferLossResult out;
   out.grad = RowMatX3d::Zero(X.rows(), 3);
 
-  // garment samples → nearest scan point
+  // garment samples → closest point of the scan surface, or nearest scan point
   rc.check("chamfer loss");
-  std::vector<AabbTree::Box> boxes(T);
-  for (Eigen::Index j = 0; j < T; ++j) boxes[j] = AabbTree::Box(scan.row(j).transpose(), scan.row(j).transpose());
   AabbTree scan_tree;
-  scan_tree.build(boxes);
+  if (!scan_surface) {
+    std::vector<AabbTree::Box> boxes(T);
+    for (Eigen::Index j = 0; j < T; ++j) boxes[j] = AabbTree::Box(scan.row(j).transpose(), scan.row(j).transpose());
+    scan_tree.build(boxes);
+  }
+  const double trim = std::isfinite(trim_sq) ? std::sqrt(trim_sq) : std::numeric_limits<double>::infinity();
   RowMatX3d g_res(S, 3);           // g_i − t_i (zero when trimmed)
   std::vector<char> g_keep(S);
 #pragma omp parallel for schedule(static)
@@ -35,6 +39,12 @@ ChamferLossResult chamfer_loss(const RefX3d& X, const RefX3i& F, const SurfaceSa
     const int t = samples.tri[i];
     const Vec3 g = samples.bary(i, 0) * X.row(F(t, 0)).transpose() + samples.bary(i, 1) * X.row(F(t, 1)).transpose() +
                    samples.bary(i, 2) * X.row(F(t, 2)).transpose();
+    if (scan_surface) {
+      const SurfaceHit h = scan_surface->closest(g, trim);
+      g_keep[i] = h.tri >= 0;
+      g_res.row(i) = h.tri >= 0 ? Eigen::RowVector3d((g - h.point).transpose()) : Eigen::RowVector3d::Zero();
+      continue;
+    }
     double d_sq;
     const int j = scan_tree.closest(g, [&](int k) { return (scan.row(k).transpose() - g).squaredNorm(); }, trim_sq, d_sq);
     g_keep[i] = j >= 0;
@@ -49,7 +59,7 @@ ChamferLossResult chamfer_loss(const RefX3d& X, const RefX3i& F, const SurfaceSa
 #pragma omp parallel for schedule(static)
   for (Eigen::Index j = 0; j < T; ++j) {
     const Vec3 s = scan.row(j);
-    hits[j] = garment.closest(s, std::isfinite(trim_sq) ? std::sqrt(trim_sq) : std::numeric_limits<double>::infinity());
+    hits[j] = garment.closest(s, trim);
     s_res.row(j) = hits[j].tri >= 0 ? Eigen::RowVector3d((hits[j].point - s).transpose()) : Eigen::RowVector3d::Zero();
   }
 
