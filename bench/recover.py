@@ -62,7 +62,7 @@ VARIANTS = ("full", "no_cage", "no_seam", "no_curvature")
 # and with another weight σ of the interior term
 EXTRA_VARIANTS = ("euclidean", "no_cage_euclidean", "unguided", "no_measurement_fit", "fixed_masses", "stretch", "bending_step_1",
                   "robust_boundary", "unsized", "interior_K", "to_surface", "to_points",
-                  "guided_K")   # guided_K: guided_stiffness = K per s², e.g. guided_1e5   # interior_K: σ = K per m², e.g. interior_1
+                  "guided_K")   # interior_K: σ = K per m², e.g. interior_1; guided_K: κ_g = K per s² (K+L+…: each in turn)
 
 
 def corner_edge_lengths(g, corners_from=None) -> list:
@@ -138,10 +138,11 @@ def options_for(variant, iterations, output_edge=0.0, friction=None, contact_nor
         return o.with_(weights=Weights(**{**o.weights.__dict__, "interior": sigma}))
     if variant.startswith("guided_"):   # the scan-guided drapes' spring stiffness (1/s²), set to the number
         try:
-            kappa = float(variant[len("guided_"):])
+            kappa = [float(k) for k in variant[len("guided_"):].split("+")]
         except ValueError:
-            raise ValueError(f"variant {variant!r}: guided_K needs a number K (1/s²), e.g. guided_1e5") from None
-        return o.with_(guided_stiffness=kappa)
+            raise ValueError(f"variant {variant!r}: guided_K needs a number K (1/s²), e.g. guided_1e5, "
+                             "or numbers joined by +, e.g. guided_1e4+1e6") from None
+        return o.with_(guided_stiffness=kappa[0] if len(kappa) == 1 else kappa)
     if variant in ("to_surface", "to_points"):   # garment samples measured to the scan's surface / nearest scan point
         return o.with_(interior_to=variant[3:])
     if variant == "bending_step_1":   # L-BFGS's unit of log10 bending: 1 decade instead of 0.1

@@ -304,21 +304,30 @@ class CoOptObjective:
         self.last_initial = (v_warm, v_init)
         return kept
 
+    def guided_stiffnesses(self) -> tuple:
+        """opts.guided_stiffness as a tuple of κ_g (1/s²); () when guided drapes are off."""
+        kg = self.opts.guided_stiffness
+        return tuple(kg) if isinstance(kg, tuple) else ((float(kg),) if kg else ())
+
     def try_guided(self, params) -> bool:
         """As try_fresh, with a scan-guided drape (guided_drape.py: pulled toward the scan with
         springs of opts.guided_stiffness, then released) from the current warm start's drape as
-        the candidate: a fold state chosen by the scan. False (nothing changed) without a scan
+        the candidate: a fold state chosen by the scan. With a list of stiffnesses, each in turn,
+        from the warm start the one before left (a stiffer pull holds the cloth nearer the scan's
+        folds, a softer one lets it keep more of its own). False (nothing changed) without a scan
         mesh or with guided_stiffness 0."""
-        if self.scan_mesh is None or not self.opts.guided_stiffness:
+        if self.scan_mesh is None:
             return False
-
-        def guide(v_warm):
-            if not np.isfinite(v_warm):
-                raise ValueError("no warm drape to guide")
-            guided_equilibrium(self.cloth, *self.scan_mesh, self.opts.guided_stiffness, self.opts.guided_capture,
-                               residual_tol=self.opts.residual_tol, cancel=self.cancel)
-        v_warm, v_guided, kept = self._try_candidate(params, guide)
-        self.last_guided = (v_warm, v_guided)
+        kept = False
+        for kappa in self.guided_stiffnesses():
+            def guide(v_warm, kappa=kappa):
+                if not np.isfinite(v_warm):
+                    raise ValueError("no warm drape to guide")
+                guided_equilibrium(self.cloth, *self.scan_mesh, kappa, self.opts.guided_capture,
+                                   residual_tol=self.opts.residual_tol, cancel=self.cancel)
+            v_warm, v_guided, k = self._try_candidate(params, guide)
+            self.last_guided = (v_warm, v_guided)
+            kept |= k
         return kept
 
     def commit(self) -> None:

@@ -129,8 +129,32 @@ def test_co_optimize_returns_the_guided_equilibrium_of_its_parameters(skirts):
     c.reset(x0)
 
 
+def test_a_list_of_guided_stiffnesses_is_tried_in_turn(skirts):
+    """guided_stiffness [κ1, κ2]: the same as try_guided at κ1, then at κ2 from the warm start
+    that left: the same warm start to the bit."""
+    g, c, S = skirts
+    x0 = np.array(c.x)
+    loops = {k: S[v] for k, v in g.boundaries.items()}
+    base = RecoverOptions.from_config(residual_tol=1e-8, samples=200)
+    ends = []
+    for plan in (((1e4, 1e6),), (1e4, 1e6)):   # one call with the list; two calls with one each
+        c.reset(x0)
+        obj = CoOptObjective(c, g, S, loops, base, cage=build_cage(g), scan_mesh=(S, g.faces))
+        theta = obj.initial_params()
+        obj(theta)
+        obj.commit()
+        for kappa in plan:
+            obj.opts = base.with_(guided_stiffness=kappa)
+            obj.try_guided(theta)
+        ends.append((np.array(obj.x_warm), obj.last_guided))
+    np.testing.assert_array_equal(ends[0][0], ends[1][0])
+    assert ends[0][1] == ends[1][1]
+    c.reset(x0)
+
+
 @pytest.mark.parametrize("field,value", [("guided_stiffness", -1.0), ("guided_capture", 0.0),
-                                         ("guided_stiffness", float("nan"))])
+                                         ("guided_stiffness", float("nan")), ("guided_stiffness", []),
+                                         ("guided_stiffness", [1e4, 0.0]), ("guided_stiffness", [1e4, float("inf")])])
 def test_guided_options_are_validated(field, value):
     with pytest.raises(ValueError, match=field):
         RecoverOptions.from_config(**{field: value})
