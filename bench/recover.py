@@ -142,7 +142,7 @@ def options_for(variant, iterations, output_edge=0.0, friction=None, contact_nor
         except ValueError:
             raise ValueError(f"variant {variant!r}: guided_K needs a number K (1/s²), e.g. guided_1e5, "
                              "or numbers joined by +, e.g. guided_1e4+1e6") from None
-        return o.with_(guided_stiffness=kappa[0] if len(kappa) == 1 else kappa)
+        return o.with_(guided_stiffness=kappa)
     if variant in ("to_surface", "to_points"):   # garment samples measured to the scan's surface / nearest scan point
         return o.with_(interior_to=variant[3:])
     if variant == "bending_step_1":   # L-BFGS's unit of log10 bending: 1 decade instead of 0.1

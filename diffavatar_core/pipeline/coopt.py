@@ -304,11 +304,6 @@ class CoOptObjective:
         self.last_initial = (v_warm, v_init)
         return kept
 
-    def guided_stiffnesses(self) -> tuple:
-        """opts.guided_stiffness as a tuple of κ_g (1/s²); () when guided drapes are off."""
-        kg = self.opts.guided_stiffness
-        return tuple(kg) if isinstance(kg, tuple) else ((float(kg),) if kg else ())
-
     def try_guided(self, params) -> bool:
         """As try_fresh, with a scan-guided drape (guided_drape.py: pulled toward the scan with
         springs of opts.guided_stiffness, then released) from the current warm start's drape as
@@ -319,7 +314,7 @@ class CoOptObjective:
         if self.scan_mesh is None:
             return False
         kept = False
-        for kappa in self.guided_stiffnesses():
+        for kappa in self.opts.guided_stiffness:
             def guide(v_warm, kappa=kappa):
                 if not np.isfinite(v_warm):
                     raise ValueError("no warm drape to guide")

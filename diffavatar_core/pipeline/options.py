@@ -73,7 +73,7 @@ class RecoverOptions:
     measurement_fit_iterations: int = 10
     template_sizing: bool = True
     masses_follow_rest: bool = True
-    guided_stiffness: float | tuple = (1.0e4, 1.0e6)   # 1/s²; a list: each in turn (CoOptObjective.try_guided)
+    guided_stiffness: tuple = (1.0e4, 1.0e6)   # 1/s², each in turn (CoOptObjective.try_guided); a number k is (k,), 0 is ()
     guided_capture: float = 0.03
     length_tolerance_pct: float = 2.0
     length_tolerance_min: float = 0.01
@@ -106,14 +106,13 @@ class RecoverOptions:
                 bad(name, "must be a positive number")
         if self.length_measure not in ("raw", "resampled"):
             bad("length_measure", "must be raw or resampled")
-        kg = self.guided_stiffness
-        if isinstance(kg, (list, tuple)):
-            if not kg or any(isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0
-                             for v in kg):
-                bad("guided_stiffness", "must be a number >= 0 or a non-empty list of positive numbers")
-            object.__setattr__(self, "guided_stiffness", tuple(float(v) for v in kg))
+        kg = self.guided_stiffness   # stored as the tuple of stiffnesses to try: a number k is (k,), 0 is ()
+        seq = tuple(kg) if isinstance(kg, (list, tuple)) else (kg,)
+        if not seq or any(isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0
+                          or (v == 0 and len(seq) > 1) for v in seq):
+            bad("guided_stiffness", "must be a number >= 0 (0: off) or a non-empty list of positive numbers")
+        object.__setattr__(self, "guided_stiffness", tuple(float(v) for v in seq if v > 0))
         for name in ("length_tolerance_pct", "length_tolerance_min", "sobolev_length", "reevaluate_tol",
-                     *(() if isinstance(kg, (list, tuple)) else ("guided_stiffness",)),
                      "length_smoothing", "output_friction", "boundary_scale"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:

@@ -21,7 +21,7 @@ struct ChamferLossResult {
   double value = 0.0;          ///< L (m²)
   double garment_to_scan = 0.0;  ///< mean squared distance, garment samples → scan (points or surface) (m²)
   double scan_to_garment = 0.0;  ///< mean squared distance, scan points → garment surface (m²)
-  int garment_trimmed = 0;     ///< garment samples ignored (nearest scan point beyond trim distance)
+  int garment_trimmed = 0;     ///< garment samples ignored (the scan, points or surface, beyond trim distance)
   int scan_trimmed = 0;        ///< scan points ignored (garment surface beyond trim distance)
   RowMatX3d grad;              ///< dL/dX, #V×3 (m)
 };
