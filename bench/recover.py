@@ -19,7 +19,9 @@ boundary term robust beyond 1 cm, boundary_scale 0.01 m); unsized (no template s
 template_sizing false: a reference run); interior_K (σ, the interior Chamfer's weight, = K per m²: interior_1
 is the default before stop 41); to_surface / to_points (L_interior's garment samples measured to the scan's
 garment surface / to the nearest of its interior samples, `interior_to`); guided_K (the scan-guided drapes'
-spring stiffness κ_g = K per s², e.g. guided_1e5).
+spring stiffness κ_g = K per s², e.g. guided_1e5); bendtry_D (bending candidates: the bending × 10^d tried at
+every check, `bending_candidates`; offsets in decades joined by +, m for minus, e.g. bendtry_1+m1; @M sets
+`bending_margin`, e.g. bendtry_1+m1@0).
 
 The floor: each case's truth.chamfer_truth_cm is the truth's own drape against the scan (the scan's
 noise, resampling and holes; SyntheticCase.truth_chamfer_cm), so each variant's chamfer_ratio_floor
@@ -62,7 +64,7 @@ VARIANTS = ("full", "no_cage", "no_seam", "no_curvature")
 # and with another weight σ of the interior term
 EXTRA_VARIANTS = ("euclidean", "no_cage_euclidean", "unguided", "no_measurement_fit", "fixed_masses", "stretch", "bending_step_1",
                   "robust_boundary", "unsized", "interior_K", "to_surface", "to_points",
-                  "guided_K")   # interior_K: σ = K per m², e.g. interior_1; guided_K: κ_g = K per s² (K+L+…: each in turn)
+                  "guided_K", "bendtry_D")   # interior_K: σ = K per m², e.g. interior_1; guided_K: κ_g = K per s² (K+L+…: each in turn)
 
 
 def corner_edge_lengths(g, corners_from=None) -> list:
@@ -143,6 +145,15 @@ def options_for(variant, iterations, output_edge=0.0, friction=None, contact_nor
             raise ValueError(f"variant {variant!r}: guided_K needs a number K (1/s²), e.g. guided_1e5, "
                              "or numbers joined by +, e.g. guided_1e4+1e6") from None
         return o.with_(guided_stiffness=kappa)
+    if variant.startswith("bendtry_"):   # bending candidates at every check: offsets in decades, e.g. bendtry_1+m1 (m: minus)
+        spec, _, margin = variant[len("bendtry_"):].partition("@")
+        try:
+            offsets = [float(d) for d in spec.replace("m", "-").split("+")]
+            margin = float(margin) if margin else o.bending_margin
+        except ValueError:
+            raise ValueError(f"variant {variant!r}: bendtry_D needs offsets in decades joined by +, "
+                             "e.g. bendtry_1+m1 (m: minus), optionally @margin, e.g. bendtry_1+m1@0") from None
+        return o.with_(bending_candidates=offsets, bending_margin=margin)
     if variant in ("to_surface", "to_points"):   # garment samples measured to the scan's surface / nearest scan point
         return o.with_(interior_to=variant[3:])
     if variant == "bending_step_1":   # L-BFGS's unit of log10 bending: 1 decade instead of 0.1
@@ -173,6 +184,7 @@ def run_case(case, variant, iterations, output_edge=0.0, friction=None, contact_
         "template_area_error_pct": 100 * abs(m["template_area_m2"] - area_gt) / area_gt,
         "pattern_edge_error_cm": pattern_edge_error_cm(r.garment, case.garment, getattr(r, "template", None)),
         "bending_log10_error": abs(math.log10(r.material.bending_stiffness) - math.log10(case.bend_stiffness)),
+        "bending_n_m": r.material.bending_stiffness, "bending_truth_n_m": case.bend_stiffness,
         "stretch_log10_error": stretch_log10_error(r.material, case),
         "body_vertex_error_cm": 100 * float(np.linalg.norm(r.body_vertices - case.body_vertices, axis=1).mean()),
         "mesh_quality_min": m["mesh_quality_min"], "seam_length_mismatch_max_pct": m["seam_length_mismatch_max_pct"],
@@ -183,6 +195,7 @@ def run_case(case, variant, iterations, output_edge=0.0, friction=None, contact_
         "iterations": r.iterations, "stopped": m["stopped"],
         "fresh_drapes_kept": m.get("fresh_drapes_kept"), "guided_drapes_kept": m.get("guided_drapes_kept"),
         "initial_drapes_kept": m.get("initial_drapes_kept"),
+        "bending_candidates_kept": m.get("bending_candidates_kept"),
         "output_drape": m.get("output_drape"),
         "measurement_fit": m.get("measurement_fit"),
         "template_sizing": m.get("template_sizing"),

@@ -6,7 +6,8 @@ optionally log10 stretch compliances (warp, weft, shear; one set), body shape ν
 Each evaluation re-drapes from the previous equilibrium (Newton from the warm start; a full
 XPBD + Newton drape only if that fails; every `fresh_every` iterations also a drape from the
 template layout, a re-drape from the template's initial drape and a scan-guided drape
-(guided_drape.py), each kept as the warm start when its φ is lower), evaluates
+(guided_drape.py), each kept as the warm start when its φ is lower, and the bending × 10^±1
+re-draped and guided, kept with its drape when φ is 2% lower: try_bending), evaluates
     φ = ρ L_boundary + σ L_interior + α L_seam(x̄) + β L_curvature(x̄)
         + δ L_body(ν, ψ) + γ |(ν, ψ) − (ν, ψ)_fit|²,
 (L_body: the scan's visible body points to the posed body surface, full scans only — without it
@@ -34,6 +35,9 @@ from .guided_drape import guided_equilibrium
 from .measurement_fit import fit_measurements
 from .options import RecoverOptions
 
+BENDING_RANGE = (1e-7, 1e-3)   # N·m: bending candidates (try_bending) outside it are not tried: about
+# Kawabata B = 0.001 … 10 gf·cm²/cm (1 gf·cm²/cm ≈ 9.8e-5 N·m), the softest silks to stiffer than heavy denim
+
 
 @dataclass
 class CoOptResult:
@@ -52,6 +56,7 @@ class CoOptResult:
     stretch_compliance: np.ndarray | None = None  # (G, 3) m/N [warp, weft, shear] of the returned drape
     stop_reason: str = ""        # stopped 'invalid_start': why the stage's start did not re-drape
     initial_kept: int = 0        # re-drapes from the template's initial drape (try_initial) that became the warm start
+    bending_kept: int = 0        # bending candidates (try_bending) that became the iterate and its warm start
 
 
 def seam_mismatch_pct(g, rest) -> float:
@@ -107,6 +112,7 @@ class CoOptObjective:
         self.last_fresh = None   # (φ warm, φ fresh) of the last try_fresh
         self.last_guided = None  # (φ warm, φ guided) of the last try_guided
         self.last_initial = None  # (φ warm, φ from the initial drape) of the last try_initial
+        self.last_bending = None  # φ of the candidate the last try_bending kept (None: none kept)
         bp = np.zeros((0, 3)) if body_points is None else np.asarray(body_points, np.float64).reshape(-1, 3)
         if len(bp) > opts.samples:   # a fixed, reproducible subset
             bp = bp[np.random.default_rng(0).choice(len(bp), opts.samples, replace=False)]
@@ -325,6 +331,54 @@ class CoOptObjective:
             kept |= k
         return kept
 
+    def try_bending(self, params) -> tuple[dict, bool]:
+        """A global step in the bending (N·m) the gradient does not take: L-BFGS moves log10 k_b by
+        fractions of a decade, and a stiffer or softer fabric lands in other folds, so φ is not
+        smooth over decades. For each offset d (decades) of opts.bending_candidates the current
+        drape is re-draped at k_b·10^d, then scan-guided (each of opts.guided_stiffness in turn, as
+        try_guided); the lowest-φ (parameters, drape) of these becomes the iterate and its warm
+        start when its φ is below (1 − opts.bending_margin) × φ of `params` at the warm start:
+        re-drapes of one θ differ by about a percent (the fold state), and a material change must
+        explain the scan better than that (BENCHMARKS.md stop 43). Candidates outside
+        BENDING_RANGE are not tried. Returns (the parameters, True when a candidate was kept);
+        (params, False) with the bending fixed or no offsets. φ of a kept candidate is evaluated
+        at its own equilibrium (last_bending); the cloth is left at the returned parameters and
+        warm start."""
+        offsets = self.opts.bending_candidates
+        if not offsets or "log_bend" not in params:
+            return params, False
+        x_keep = np.array(self.x_warm)
+        v_best, best, x_best = self._value_or_inf(params), params, x_keep
+        if not np.isfinite(v_best):
+            return params, False
+        v_best *= 1.0 - self.opts.bending_margin   # what a candidate has to beat
+        lo, hi = np.log10(BENDING_RANGE[0]), np.log10(BENDING_RANGE[1])
+        for d in offsets:
+            cand = {**params, "log_bend": np.asarray(params["log_bend"], np.float64) + d}
+            if cand["log_bend"].min() < lo or cand["log_bend"].max() > hi:
+                continue
+            self.x_warm = x_keep.copy()
+            v = self._value_or_inf(cand)        # re-draped at k_b·10^d from the current drape
+            if not np.isfinite(v):
+                continue
+            if v < v_best:
+                v_best, best, x_best = v, cand, np.array(self.x_last)
+            for kappa in (self.opts.guided_stiffness if self.scan_mesh is not None else ()):
+                try:
+                    guided_equilibrium(self.cloth, *self.scan_mesh, kappa, self.opts.guided_capture,
+                                       residual_tol=self.opts.residual_tol, cancel=self.cancel)
+                except ValueError:
+                    break
+                self.x_warm = np.array(self.cloth.x)
+                v = self._value_or_inf(cand)
+                if v < v_best:
+                    v_best, best, x_best = v, cand, np.array(self.x_last)
+        self.x_warm = x_best
+        self.x_last = x_best
+        self.restore(best)
+        self.last_bending = v_best if best is not params else None
+        return best, best is not params
+
     def commit(self) -> None:
         """The last evaluated point became the optimizer's current iterate: later re-drapes start
         from (and are anchored to) its drape. Rejected trials never become warm starts — one may
@@ -358,7 +412,7 @@ def co_optimize(cloth, garment, scan_points, scan_loops: dict, opts: RecoverOpti
     obj = CoOptObjective(cloth, garment, scan_points, scan_loops, opts, cage, body_model, body_params, cancel,
                          body_points, scan_mesh)
     params = obj.initial_params()
-    history, fit, base, stop_reason, initial_used = [], None, 0, "", []
+    history, fit, base, stop_reason, initial_used, bending_used = [], None, 0, "", [], []
     if opts.iterations and opts.measurement_fit_iterations and measurement_map is not None:
         def report_fit(h):
             history.append({**h, "stage": "measurements"})
@@ -394,7 +448,7 @@ def co_optimize(cloth, garment, scan_points, scan_loops: dict, opts: RecoverOpti
             cuts |= set(range(fresh_every, n_it, fresh_every))
         cuts = sorted(cuts)
         it, rej, stopped = 0, 0, "max_iterations"
-        fresh_used, guided_used, initial_used = [], [], []
+        fresh_used, guided_used, initial_used, bending_used = [], [], [], []
         pre = obj.precondition() if opts.optimizer == "lbfgs" else {}
 
         def run_stage(evaluate, free, lr, n, report):
@@ -420,6 +474,9 @@ def co_optimize(cloth, garment, scan_points, scan_loops: dict, opts: RecoverOpti
                 fresh_used.append(obj.try_fresh(params))
                 initial_used.append(obj.try_initial(params))
                 guided_used.append(obj.try_guided(params))
+                if start >= bend_after:
+                    params, b = obj.try_bending(params)
+                    bending_used.append(b)
             free = {g: v for g, v in params.items() if g not in held}
             lr = {g: v for g, v in obj.step_sizes().items() if g not in held}
 
@@ -453,6 +510,8 @@ def co_optimize(cloth, garment, scan_points, scan_loops: dict, opts: RecoverOpti
             # invalid_start too: the iterate's own drape did not re-drape, one from the initial may)
             initial_used.append(obj.try_initial(best))
             guided_used.append(obj.try_guided(best))
+            best, b = obj.try_bending(best)
+            bending_used.append(b)
         kept, gkept = int(sum(fresh_used)), int(sum(guided_used))
     rest, bend, bp = obj.unpack(best)
     bv = body_model.pose(bp) if obj.use_body else None
@@ -464,4 +523,4 @@ def co_optimize(cloth, garment, scan_points, scan_loops: dict, opts: RecoverOpti
         cloth.reset(obj.x_warm)
     return CoOptResult(rest, bend, bp if obj.use_body else body_params, bv, np.array(cloth.x), history, it, rej,
                        stopped, kept, gkept, fit, np.asarray(cloth.control.stretch_compliance).reshape(-1, 3).copy(),
-                       stop_reason, initial_kept=int(sum(initial_used)))
+                       stop_reason, initial_kept=int(sum(initial_used)), bending_kept=int(sum(bending_used)))

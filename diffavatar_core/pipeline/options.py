@@ -75,6 +75,8 @@ class RecoverOptions:
     masses_follow_rest: bool = True
     guided_stiffness: tuple = (1.0e4, 1.0e6)   # 1/s², each in turn (CoOptObjective.try_guided); a number k is (k,), 0 is ()
     guided_capture: float = 0.03
+    bending_candidates: tuple = (1.0, -1.0)   # decades: log10 offsets of the bending tried at every check (CoOptObjective.try_bending)
+    bending_margin: float = 0.02     # a bending candidate is kept when φ is lower by more than this fraction
     length_tolerance_pct: float = 2.0
     length_tolerance_min: float = 0.01
     patience: int = 5
@@ -112,6 +114,15 @@ class RecoverOptions:
                           or (v == 0 and len(seq) > 1) for v in seq):
             bad("guided_stiffness", "must be a number >= 0 (0: off) or a non-empty list of positive numbers")
         object.__setattr__(self, "guided_stiffness", tuple(float(v) for v in seq if v > 0))
+        bc = self.bending_candidates   # stored as a tuple of offsets (decades); a number d is (d,)
+        seq = tuple(bc) if isinstance(bc, (list, tuple)) else (bc,)
+        if any(isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v == 0 or abs(v) > 3
+               for v in seq):
+            bad("bending_candidates", "must be a list of non-zero offsets in decades, each within ±3")
+        object.__setattr__(self, "bending_candidates", tuple(float(v) for v in seq))
+        m = self.bending_margin
+        if isinstance(m, bool) or not isinstance(m, (int, float)) or not 0 <= m < 1:
+            bad("bending_margin", "must be a fraction in [0, 1)")
         for name in ("length_tolerance_pct", "length_tolerance_min", "sobolev_length", "reevaluate_tol",
                      "length_smoothing", "output_friction", "boundary_scale"):
             v = getattr(self, name)

@@ -508,6 +508,7 @@ def _recover(scan, opts: RecoverOptions, ctl: "_Control", body_model, t0: float)
         "template_sizing": sizing,
         "stopped": co.stopped, "rejected_iterations": co.rejected, "fresh_drapes_kept": co.fresh_kept,
         "guided_drapes_kept": co.guided_kept, "initial_drapes_kept": co.initial_kept,
+        "bending_candidates_kept": co.bending_kept,
         "measurement_fit": co.measurement_fit.to_json() if co.measurement_fit is not None else None,
         "optimized_vertices": int(len(g.rest)), "output_vertices": int(len(rest_out)),
         "output_drape": output_drape,

@@ -158,3 +158,78 @@ def test_a_list_of_guided_stiffnesses_is_tried_in_turn(skirts):
 def test_guided_options_are_validated(field, value):
     with pytest.raises(ValueError, match=field):
         RecoverOptions.from_config(**{field: value})
+
+
+def test_try_bending_keeps_the_lower_loss_candidate_with_its_own_equilibrium(skirts):
+    """The soft skirt (5e-6 N·m) against the folds of the same pattern at 1e-3 N·m: the
+    candidate 100× stiffer (5e-4, 0.3 decade from the truth) explains the scan better than the
+    soft fabric and is kept, the one 100× softer is not; what is returned is an equilibrium of
+    the returned parameters, and φ re-evaluated there from the new warm start is the reported
+    one. With no offsets, or with the bending fixed, nothing changes."""
+    g, c, S = skirts
+    x0 = np.array(c.x)
+    loops = {k: S[v] for k, v in g.boundaries.items()}
+    opts = RecoverOptions.from_config(residual_tol=1e-8, samples=200, bending_candidates=[-2, 2])
+    for o in (opts.with_(bending_candidates=[]), opts.with_(bending="fixed")):
+        c.reset(x0)
+        obj = CoOptObjective(c, g, S, loops, o, cage=build_cage(g), scan_mesh=(S, g.faces))
+        theta = obj.initial_params()
+        assert obj.try_bending(theta) == (theta, False)
+    c.reset(x0)
+    obj = CoOptObjective(c, g, S, loops, opts, cage=build_cage(g), scan_mesh=(S, g.faces))
+    theta = obj.initial_params()
+    v0 = obj(theta)[0]
+    obj.commit()
+    best, kept = obj.try_bending(theta)
+    assert kept and obj.last_bending < (1 - opts.bending_margin) * v0, (obj.last_bending, v0)
+    np.testing.assert_allclose(best["log_bend"], theta["log_bend"] + 2, atol=1e-12)
+    np.testing.assert_array_equal(best["handles"], theta["handles"])
+    np.testing.assert_allclose(np.asarray(c.control.bend_stiffness), 10.0 ** best["log_bend"][0], rtol=1e-12)
+    x_kept = np.array(c.x)
+    np.testing.assert_array_equal(x_kept, obj.x_warm)
+    assert obj(best)[0] == pytest.approx(obj.last_bending, rel=1e-6)
+    x = np.array(c.x)   # re-draped at the returned parameters from the kept drape: it stays (an equilibrium)
+    assert c.solver.residual(x, GRAVITY) <= 1e-6
+    assert np.abs(x - x_kept).max() < 1e-4
+    # the same trial with a margin no candidate beats: nothing kept, the warm start and φ untouched
+    c.set_control(bend_stiffness=np.full(len(np.asarray(c.control.bend_stiffness)), 5e-6))
+    c.reset(x0)
+    obj = CoOptObjective(c, g, S, loops, opts.with_(bending_margin=0.99), cage=build_cage(g), scan_mesh=(S, g.faces))
+    assert obj(theta)[0] == v0
+    obj.commit()
+    x_before = np.array(obj.x_warm)
+    assert obj.try_bending(theta) == (theta, False) and obj.last_bending is None
+    np.testing.assert_array_equal(obj.x_warm, x_before)
+    np.testing.assert_allclose(np.asarray(c.control.bend_stiffness), 5e-6, rtol=1e-12)
+    c.reset(x0)
+
+
+def test_bending_candidates_outside_the_range_are_not_tried(skirts):
+    """From 5e-6 N·m, offsets of ±3 decades land at 5e-9 and 5e-3 N·m: the first lies outside
+    BENDING_RANGE and is skipped (no drape at it: nothing kept, the warm start untouched)."""
+    from diffavatar_core.pipeline.coopt import BENDING_RANGE
+    g, c, S = skirts
+    x0 = np.array(c.x)
+    loops = {k: S[v] for k, v in g.boundaries.items()}
+    opts = RecoverOptions.from_config(residual_tol=1e-8, samples=200, bending_candidates=[-3])
+    assert 5e-9 < BENDING_RANGE[0]
+    obj = CoOptObjective(c, g, S, loops, opts, cage=build_cage(g), scan_mesh=(S, g.faces))
+    theta = obj.initial_params()
+    obj(theta)
+    obj.commit()
+    x_before = np.array(obj.x_warm)
+    assert obj.try_bending(theta) == (theta, False)
+    np.testing.assert_array_equal(obj.x_warm, x_before)
+    c.reset(x0)
+
+
+@pytest.mark.parametrize("value", [[0.0], [float("nan")], [4.0], [True], "one"])
+def test_bending_candidates_are_validated(value):
+    with pytest.raises(ValueError, match="bending_candidates"):
+        RecoverOptions.from_config(bending_candidates=value)
+
+
+@pytest.mark.parametrize("value", [-0.01, 1.0, float("nan"), True, "2%"])
+def test_bending_margin_is_validated(value):
+    with pytest.raises(ValueError, match="bending_margin"):
+        RecoverOptions.from_config(bending_margin=value)
