@@ -163,9 +163,10 @@ def test_guided_options_are_validated(field, value):
 def test_try_bending_keeps_the_lower_loss_candidate_with_its_own_equilibrium(skirts):
     """The soft skirt (5e-6 N·m) against the folds of the same pattern at 1e-3 N·m: the
     candidate 100× stiffer (5e-4, 0.3 decade from the truth) explains the scan better than the
-    soft fabric and is kept, the one 100× softer is not; what is returned is an equilibrium of
-    the returned parameters, and φ re-evaluated there from the new warm start is the reported
-    one. With no offsets, or with the bending fixed, nothing changes."""
+    soft fabric and is the one kept (the 100× softer one is tried too); what is returned is an
+    equilibrium of the returned parameters, and φ re-evaluated there from the new warm start is
+    the reported one. With no offsets, or with the bending fixed, nothing changes; with a margin
+    no candidate beats, nothing is kept."""
     g, c, S = skirts
     x0 = np.array(c.x)
     loops = {k: S[v] for k, v in g.boundaries.items()}
@@ -205,8 +206,8 @@ def test_try_bending_keeps_the_lower_loss_candidate_with_its_own_equilibrium(ski
 
 
 def test_bending_candidates_outside_the_range_are_not_tried(skirts):
-    """From 5e-6 N·m, offsets of ±3 decades land at 5e-9 and 5e-3 N·m: the first lies outside
-    BENDING_RANGE and is skipped (no drape at it: nothing kept, the warm start untouched)."""
+    """From 5e-6 N·m an offset of −3 decades lands at 5e-9 N·m, below BENDING_RANGE: it is not
+    tried (nothing kept, the warm start untouched)."""
     from diffavatar_core.pipeline.coopt import BENDING_RANGE
     g, c, S = skirts
     x0 = np.array(c.x)
@@ -218,7 +219,11 @@ def test_bending_candidates_outside_the_range_are_not_tried(skirts):
     obj(theta)
     obj.commit()
     x_before = np.array(obj.x_warm)
+    evaluated = []   # the log10 bending of every φ evaluation try_bending makes
+    value = obj._value_or_inf
+    obj._value_or_inf = lambda p: evaluated.append(float(p["log_bend"][0])) or value(p)
     assert obj.try_bending(theta) == (theta, False)
+    assert evaluated == [float(theta["log_bend"][0])]   # only the current bending, at the warm start
     np.testing.assert_array_equal(obj.x_warm, x_before)
     c.reset(x0)
 
