@@ -310,6 +310,12 @@ class CoOptObjective:
         self.last_initial = (v_warm, v_init)
         return kept
 
+    def _guide(self, kappa: float) -> None:
+        """Moves the cloth to its scan-guided equilibrium at κ_g = kappa (1/s²; guided_drape.py) with
+        this run's capture distance, tolerance and cancel; ValueError when there is none."""
+        guided_equilibrium(self.cloth, *self.scan_mesh, kappa, self.opts.guided_capture,
+                           residual_tol=self.opts.residual_tol, cancel=self.cancel)
+
     def try_guided(self, params) -> bool:
         """As try_fresh, with a scan-guided drape (guided_drape.py: pulled toward the scan with
         springs of opts.guided_stiffness, then released) from the current warm start's drape as
@@ -324,8 +330,7 @@ class CoOptObjective:
             def guide(v_warm, kappa=kappa):
                 if not np.isfinite(v_warm):
                     raise ValueError("no warm drape to guide")
-                guided_equilibrium(self.cloth, *self.scan_mesh, kappa, self.opts.guided_capture,
-                                   residual_tol=self.opts.residual_tol, cancel=self.cancel)
+                self._guide(kappa)
             v_warm, v_guided, k = self._try_candidate(params, guide)
             self.last_guided = (v_warm, v_guided)
             kept |= k
@@ -365,8 +370,7 @@ class CoOptObjective:
                 v_best, best, x_best = v, cand, np.array(self.x_last)
             for kappa in (self.opts.guided_stiffness if self.scan_mesh is not None else ()):
                 try:
-                    guided_equilibrium(self.cloth, *self.scan_mesh, kappa, self.opts.guided_capture,
-                                       residual_tol=self.opts.residual_tol, cancel=self.cancel)
+                    self._guide(kappa)
                 except ValueError:
                     break
                 self.x_warm = np.array(self.cloth.x)
