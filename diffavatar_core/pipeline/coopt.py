@@ -183,6 +183,14 @@ class CoOptObjective:
 
     def __call__(self, params):
         """(φ, {group: dφ/dgroup}, {term: value}); raises ValueError for an invalid iterate."""
+        return self._evaluate(params, gradient=True)
+
+    def value(self, params) -> float:
+        """φ at `params` — the same drape and value as __call__ — without the adjoint solve and
+        the body's VJP: what the candidate comparisons (try_fresh … try_bending) need."""
+        return self._evaluate(params, gradient=False)[0]
+
+    def _evaluate(self, params, gradient: bool):
         o, w = self.opts, self.opts.weights
         rest, bend, bp = self.unpack(params)
         mismatch = seam_mismatch_pct(self.g, rest)
@@ -198,14 +206,26 @@ class CoOptObjective:
         ll = boundary_length_loss(x, self.loops, self.scan_lengths, self.length_tol) if self.loops else None
         ls, gs = self.seam_reg.value_and_grad(rest)
         lc, gc = self.curv_reg.value_and_grad(rest)
-        dphi_dx = w.interior * li.grad + (w.boundary * lb.grad + w.boundary_length * ll.grad if lb is not None else 0.0)
-        ga = equilibrium_gradient(self.cloth, dphi_dx, cancel=self.cancel)
-        g_rest = ga["rest"] + w.seam * gs + w.curvature * gc
         terms = {"boundary": lb.value if lb is not None else 0.0,
                  "boundary_length": ll.value if ll is not None else 0.0,
                  "interior": li.value, "seam": ls, "curvature": lc}
         value = (w.boundary * terms["boundary"] + w.boundary_length * terms["boundary_length"]
                  + w.interior * li.value + w.seam * ls + w.curvature * lc)
+        ld = None
+        if self.use_body:
+            if len(self.body_points) and w.body_data > 0:
+                ld = body_data_loss(bv, self.model.faces, self.body_points, o.body_trim_distance)
+                terms["body_data"] = ld.value
+                value += w.body_data * ld.value
+            dnu, dpsi = bp.shape - self.p0.shape, (bp.pose - self.p0.pose).reshape(-1)
+            terms["body_prior"] = float(dnu @ dnu + dpsi @ dpsi)
+            value += w.body_prior * terms["body_prior"]
+        if not gradient:
+            self.x_last = x
+            return float(value), None, terms
+        dphi_dx = w.interior * li.grad + (w.boundary * lb.grad + w.boundary_length * ll.grad if lb is not None else 0.0)
+        ga = equilibrium_gradient(self.cloth, dphi_dx, cancel=self.cancel)   # the adjoint solve
+        g_rest = ga["rest"] + w.seam * gs + w.curvature * gc
         grads = {"handles": (self.cage.grad_zeta(g_rest) if self.cage is not None else g_rest).reshape(-1)}
         if o.bending != "fixed":
             gb = np.asarray(ga["bend_stiffness"]) * bend * np.log(10.0)
@@ -215,16 +235,9 @@ class CoOptObjective:
         if self.use_body:
             sl = self.model.param_slices()
             g_body = np.asarray(ga["body_vertices"])
-            if len(self.body_points) and w.body_data > 0:
-                ld = body_data_loss(bv, self.model.faces, self.body_points, o.body_trim_distance)
-                terms["body_data"] = ld.value
-                value += w.body_data * ld.value
+            if ld is not None:
                 g_body = g_body + w.body_data * ld.grad
             gvec = self.model.vjp(bp, g_body)
-            dnu, dpsi = bp.shape - self.p0.shape, (bp.pose - self.p0.pose).reshape(-1)
-            prior = float(dnu @ dnu + dpsi @ dpsi)
-            terms["body_prior"] = prior
-            value += w.body_prior * prior
             grads["shape"] = gvec[sl["shape"]] + 2 * w.body_prior * dnu
             grads["pose"] = gvec[sl["pose"]] + 2 * w.body_prior * dpsi
         self.x_last = x
@@ -254,7 +267,7 @@ class CoOptObjective:
 
     def _value_or_inf(self, params) -> float:
         try:
-            v = self(params)[0]
+            v = self.value(params)
         except (ValueError, FloatingPointError):
             return np.inf
         return v if np.isfinite(v) else np.inf

@@ -96,6 +96,32 @@ def test_only_committed_iterates_become_warm_starts(skirt_problem):
     assert np.array_equal(obj.x_warm, obj.x_last)
 
 
+def test_value_is_the_objectives_value_without_the_adjoint(skirt_problem, monkeypatch):
+    """CoOptObjective.value (the candidate comparisons' evaluation): from the same warm start the
+    same drape and the same φ, to the bit, as __call__ — every term, the body's data and prior
+    included — and no adjoint solve."""
+    import diffavatar_core.pipeline.coopt as coopt
+    model, p, g, cloth, pts, loops = skirt_problem
+    bv = model.pose(p)
+    body_pts = bv[bv[:, 1] > np.percentile(bv[:, 1], 70)]
+    obj = CoOptObjective(cloth, g, pts, loops, RecoverOptions.from_config(residual_tol=1e-8, samples=200),
+                         cage=build_cage(g), body_model=model, body_params=p, body_points=body_pts)
+    theta = obj.initial_params()
+    theta["handles"] = theta["handles"] * 1.01
+    theta["shape"] = theta["shape"] + 0.05
+    x0 = np.array(obj.x_warm)
+    v, _, terms = obj(theta)
+    x_full = np.array(obj.x_last)
+    assert terms["body_data"] > 0 and terms["body_prior"] > 0
+    obj.x_warm = x0
+
+    def no_adjoint(*a, **k):
+        raise AssertionError("value() solved the adjoint")
+    monkeypatch.setattr(coopt, "equilibrium_gradient", no_adjoint)
+    assert obj.value(theta) == v
+    assert np.array_equal(obj.x_last, x_full) and np.array_equal(obj.x_warm, x0)
+
+
 def test_h1_metric_step_descends(skirt_problem):
     """The objective's L-BFGS metric on the handles (sobolev_length > 0) has one row per handle
     coordinate; a 1 mm step along −P∇φ lowers φ by what the gradient predicts (first order, ±30%,
