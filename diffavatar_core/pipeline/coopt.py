@@ -465,7 +465,7 @@ def co_optimize(cloth, garment, scan_points, scan_loops: dict, opts: RecoverOpti
             cuts |= set(range(fresh_every, n_it, fresh_every))
         cuts = sorted(cuts)
         it, rej, stopped = 0, 0, "max_iterations"
-        fresh_used, guided_used, initial_used, bending_used = [], [], [], []
+        fresh_used, guided_used = [], []   # initial_used, bending_used: set above (every path reports them)
         pre = obj.precondition() if opts.optimizer == "lbfgs" else {}
 
         def run_stage(evaluate, free, lr, n, report):
