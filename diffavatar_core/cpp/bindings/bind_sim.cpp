@@ -207,7 +207,9 @@ void bind_sim(py::module_& m) {
            [](const XpbdSolver& s, const RowMatX3d& x, const Vec3& g, bool project) {
              return energy_hessian(s.energy_context(g), x, s.free_dofs(), project);
            },
-           py::arg("x"), py::arg("gravity"), py::arg("project") = true);
+           py::arg("x"), py::arg("gravity"), py::arg("project") = true)
+      .def("newton_hessian", &XpbdSolver::newton_hessian, py::arg("x"), py::arg("gravity"), py::arg("project") = true,
+           "energy_hessian as refine() assembles it (in place on a cached pattern): the same matrix bit for bit.");
 
   // dφ/d{rest, stretch_compliance, bend_stiffness, body_vertices}, as both adjoints return it
   auto control_dict = [](const ControlGradient& g) {

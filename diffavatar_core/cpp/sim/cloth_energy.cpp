@@ -171,64 +171,46 @@ RowMatX3d energy_gradient(const EnergyContext& c, const RowMatX3d& x) {
   return G;
 }
 
-Eigen::SparseMatrix<double> energy_hessian(const EnergyContext& c, const RowMatX3d& x, const std::vector<int>& dof,
-                                           bool psd) {
+ElementHessians element_hessians(const EnergyContext& c, const RowMatX3d& x, bool psd) {
   const ClothModel& m = c.model;
-  int n = 0;
-  for (int d : dof) n = std::max(n, d + 3);
-  std::vector<Eigen::Matrix<double, 9, 9>> Ht(m.faces.rows());
-  std::vector<Eigen::Matrix<double, 12, 12>> Hh(m.hinges.rows());
+  ElementHessians eh;
+  eh.tri.resize(m.faces.rows());
+  eh.hinge.resize(m.hinges.rows());
 #pragma omp parallel for schedule(static) if (m.faces.rows() >= 256)
   for (int t = 0; t < m.faces.rows(); ++t) {
     Vec3 xs[3];
     corners(m, x, t, xs);
     stretch_derivatives(xs, c.cache.tri[t], c.control.stretch_compliance.row(m.tri_group[t]).transpose(), nullptr,
-                        &Ht[t]);
-    if (psd) Ht[t] = project_psd<3>(Ht[t]);
+                        &eh.tri[t]);
+    if (psd) eh.tri[t] = project_psd<3>(eh.tri[t]);
   }
 #pragma omp parallel for schedule(static) if (m.hinges.rows() >= 256)
   for (int h = 0; h < m.hinges.rows(); ++h) {
-    Hh[h].setZero();
+    eh.hinge[h].setZero();
     double k = c.control.bend_stiffness[m.hinge_group[h]];
     if (k == 0.0) continue;
     double xs[12], th;
     Eigen::Matrix<double, 12, 1> g;
     if (!hinge_angle(m, x, h, xs, &th, &g)) continue;
     // ∇²(½ k w θ²) = k w (∇θ ∇θᵀ + θ ∇²θ), ∇²θ by HingeGeom (bending_kernel.hpp)
-    Hh[h] = k * c.cache.hinge_weight[h] * (g * g.transpose() + th * HingeGeom(xs).hessian());
-    if (psd) Hh[h] = project_psd<4>(Hh[h]);
+    eh.hinge[h] = k * c.cache.hinge_weight[h] * (g * g.transpose() + th * HingeGeom(xs).hessian());
+    if (psd) eh.hinge[h] = project_psd<4>(eh.hinge[h]);
   }
+  return eh;
+}
+
+Eigen::SparseMatrix<double> energy_hessian(const EnergyContext& c, const RowMatX3d& x, const std::vector<int>& dof,
+                                           bool psd) {
+  const ClothModel& m = c.model;
+  int n = 0;
+  for (int d : dof) n = std::max(n, d + 3);
+  const ElementHessians eh = element_hessians(c, x, psd);
   std::vector<Eigen::Triplet<double>> trip;
-  trip.reserve(m.faces.rows() * 81 + m.hinges.rows() * 144 + m.seams.rows() * 12 + c.contacts.size() * 9);
-  auto scatter = [&](const auto& H, const int* vs, int nvs) {
-    for (int a = 0; a < nvs; ++a) {
-      int ra = dof[vs[a]];
-      if (ra < 0) continue;
-      for (int b = 0; b < nvs; ++b) {
-        int rb = dof[vs[b]];
-        if (rb < 0) continue;
-        for (int i = 0; i < 3; ++i)
-          for (int j = 0; j < 3; ++j) trip.emplace_back(ra + i, rb + j, H(3 * a + i, 3 * b + j));
-      }
-    }
-  };
-  for (int t = 0; t < m.faces.rows(); ++t) scatter(Ht[t], &m.faces(t, 0), 3);
-  for (int h = 0; h < m.hinges.rows(); ++h) scatter(Hh[h], &m.hinges(h, 0), 4);
-  Eigen::Matrix<double, 6, 6> Hs;
-  Hs << Eigen::Matrix3d::Identity(), -Eigen::Matrix3d::Identity(), -Eigen::Matrix3d::Identity(),
-      Eigen::Matrix3d::Identity();
-  Hs /= m.seam_compliance;
-  for (int s = 0; s < m.seams.rows(); ++s) scatter(Hs, &m.seams(s, 0), 2);
-  for (std::size_t j = 0; j < c.contacts.size(); ++j) {
-    const ContactFrame& f = c.frames[j];
-    if (contact_gap(x.row(c.contacts[j].vertex).transpose(), f, m.thickness) >= 0.0) continue;
-    Eigen::Matrix3d H = m.contact_stiffness * f.n * f.n.transpose();  // C is linear in p: ∇ₚ²U = k_c n̂ n̂ᵀ
-    scatter(H, &c.contacts[j].vertex, 1);
-  }
-  if (c.anchor && c.anchor_stiffness > 0)
-    for (int i = 0; i < m.num_vertices; ++i)
-      if (dof[i] >= 0)
-        for (int k = 0; k < 3; ++k) trip.emplace_back(dof[i] + k, dof[i] + k, c.anchor_stiffness * m.mass[i]);
+  trip.reserve(m.faces.rows() * 81 + m.hinges.rows() * 144 + m.seams.rows() * 36 + c.contacts.size() * 9 +
+               m.num_vertices * 3);
+  scatter_hessian(
+      c, x, dof, eh, [&](int r, int col, double v) { trip.emplace_back(r, col, v); },
+      [&](int vtx, int i, int j, double v) { trip.emplace_back(dof[vtx] + i, dof[vtx] + j, v); });
   Eigen::SparseMatrix<double> S(n, n);
   S.setFromTriplets(trip.begin(), trip.end());
   return S;

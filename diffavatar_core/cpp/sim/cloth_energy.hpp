@@ -39,6 +39,31 @@ RowMatX3d energy_gradient(const EnergyContext& ctx, const RowMatX3d& x);
 Eigen::SparseMatrix<double> energy_hessian(const EnergyContext& ctx, const RowMatX3d& x, const std::vector<int>& dof,
                                            bool project_psd);
 
+/// The element Hessians ∇ₓ²E sums (J/m²): stretch per triangle (9×9 over its corners) and bending
+/// per hinge (12×12; zero for a degenerate hinge or k_b = 0), each clamped to its non-negative
+/// eigenvalues when project_psd.
+struct ElementHessians {
+  std::vector<Eigen::Matrix<double, 9, 9>> tri;
+  std::vector<Eigen::Matrix<double, 12, 12>> hinge;
+};
+ElementHessians element_hessians(const EnergyContext& ctx, const RowMatX3d& x, bool project_psd);
+
+/// Every entry (row, col, value) of ∇ₓ²E over the free DOFs, in the one order both assemblies
+/// sum duplicates in (energy_hessian's triplets, NewtonSystem's in-place values): the element
+/// blocks of triangles, hinges and seams — a pattern fixed by the mesh and `dof` — go to
+/// fixed(row, col, value); the state-dependent entries, which lie in single vertices' diagonal
+/// 3×3 blocks (penetrating contacts' k_c n̂n̂ᵀ, the anchors' κ m_i), to diag(vertex, i, j, value)
+/// for row dof[vertex] + i, column dof[vertex] + j.
+template <class Fixed, class Diag>
+void scatter_hessian(const EnergyContext& ctx, const RowMatX3d& x, const std::vector<int>& dof,
+                     const ElementHessians& eh, Fixed&& fixed, Diag&& diag);
+
+}  // namespace diffavatar
+
+#include "sim/hessian_scatter.hpp"
+
+namespace diffavatar {
+
 /// μᵀ ∂(∇ₓE)/∂θ for every control kind (same shapes as the control).
 struct ControlGradient {
   RowMatX2d rest;

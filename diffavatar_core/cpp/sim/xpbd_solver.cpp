@@ -319,6 +319,11 @@ void XpbdSolver::set_anchor(const RowMatX3d& a) {
   anchor_ = a;
 }
 
+Eigen::SparseMatrix<double> XpbdSolver::newton_hessian(const RowMatX3d& x, const Vec3& gravity, bool project_psd) {
+  if (x.rows() != model_.num_vertices) throw std::invalid_argument("newton_hessian: x must be #V×3");
+  return newton_.assemble(energy_context(gravity), x, free_dofs(), project_psd);
+}
+
 int XpbdSolver::refine(ClothState& s, const SimParams& p, const DrapeParams& d, RunControl& rc, double* res_out,
                        bool keep_anchor, bool keep_contacts) {
   if (!keep_anchor || anchor_.rows() != model_.num_vertices) anchor_ = s.x;
@@ -331,23 +336,9 @@ int XpbdSolver::refine(ClothState& s, const SimParams& p, const DrapeParams& d, 
   bool res_stale = true;  // res not yet evaluated at the current s.x
   // Levenberg–Marquardt damping λ·M (λ in 1/s², M the lumped masses): 0 unless a step fails.
   double reg = 0.0;
-  // The Hessian's pattern is the mesh's (contacts and anchors add to its diagonal blocks): the
-  // fill-reducing ordering and symbolic factorization are redone only when it changes (a hinge
-  // turning degenerate drops its entries).
-  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt;
-  std::vector<int> outer, inner;
-  auto factorize = [&](const Eigen::SparseMatrix<double>& A) {
-    const int* o = A.outerIndexPtr();
-    const int* in = A.innerIndexPtr();
-    if (!(outer.size() == static_cast<std::size_t>(A.outerSize() + 1) &&
-          inner.size() == static_cast<std::size_t>(A.nonZeros()) && std::equal(outer.begin(), outer.end(), o) &&
-          std::equal(inner.begin(), inner.end(), in))) {
-      ldlt.analyzePattern(A);
-      outer.assign(o, o + A.outerSize() + 1);
-      inner.assign(in, in + A.nonZeros());
-    }
-    ldlt.factorize(A);
-  };
+  // E at s.x once evaluated: the contact set and anchors stay fixed within the call, so the
+  // accepted trial's energy is the next iteration's E0 (NaN: not yet known).
+  double E_at_x = NAN;
   for (; it < d.refine_iterations; ++it) {
     rc.check("equilibrium refinement");
     // The contact set is detected once and then held fixed, so every line search minimises
@@ -366,15 +357,19 @@ int XpbdSolver::refine(ClothState& s, const SimParams& p, const DrapeParams& d, 
     // close to it the exact Hessian is used (quadratic convergence; compressed triangles make
     // the projected one differ) as long as it yields a descent direction.
     const bool exact = res < 1.0 && reg == 0.0;
-    Eigen::SparseMatrix<double> H = energy_hessian(ctx, s.x, dof, !exact);
+    // ∇²E on the mesh's fixed pattern, its symbolic factorization kept across iterations and
+    // calls (sim/newton_system.hpp; the same matrix and iterates as energy_hessian's).
+    const Eigen::SparseMatrix<double>& H = newton_.assemble(ctx, s.x, dof, !exact);
     VecXd step;
     for (int attempt = 0; attempt < 8; ++attempt) {
-      Eigen::SparseMatrix<double> Hr = H;
-      if (reg > 0)
+      Eigen::SparseMatrix<double> Hr;
+      if (reg > 0) {
+        Hr = H;
         for (int i = 0; i < model_.num_vertices; ++i)
           if (dof[i] >= 0)
             for (int k = 0; k < 3; ++k) Hr.coeffRef(dof[i] + k, dof[i] + k) += reg * model_.mass[i];
-      factorize(Hr);
+      }
+      const auto& ldlt = newton_.factorize(reg > 0 ? Hr : H);
       if (ldlt.info() == Eigen::Success) {
         step = ldlt.solve(-g);
         if (step.allFinite()) break;
@@ -387,13 +382,14 @@ int XpbdSolver::refine(ClothState& s, const SimParams& p, const DrapeParams& d, 
       continue;
     }
     // Backtracking line search on E (Armijo) with the contact set held fixed.
-    double E0 = total_energy(ctx, s.x), slope = g.dot(step), a = 1.0;
+    if (std::isnan(E_at_x)) E_at_x = total_energy(ctx, s.x);
+    double E0 = E_at_x, E1 = NAN, slope = g.dot(step), a = 1.0;
     RowMatX3d xt = s.x;
     bool ok = false;
     for (int ls = 0; ls < 30; ++ls) {
       for (int i = 0; i < model_.num_vertices; ++i)
         if (dof[i] >= 0) xt.row(i) = s.x.row(i) + a * step.segment<3>(dof[i]).transpose();
-      double E1 = total_energy(ctx, xt);
+      E1 = total_energy(ctx, xt);
       if (std::isfinite(E1) && E1 <= E0 + 1e-4 * a * slope) {
         ok = true;
         break;
@@ -413,6 +409,7 @@ int XpbdSolver::refine(ClothState& s, const SimParams& p, const DrapeParams& d, 
       continue;
     }
     s.x = xt;
+    E_at_x = E1;
     res_stale = true;
     reg = reg * 0.1 < 1e-6 ? 0.0 : reg * 0.1;
   }

@@ -18,6 +18,7 @@
 #include "sim/cloth_model.hpp"
 #include "sim/cloth_state.hpp"
 #include "sim/fast_sweep.hpp"
+#include "sim/newton_system.hpp"
 #include "sim/sweep_plan.hpp"
 #include "sim/sweep_tape.hpp"
 
@@ -99,6 +100,10 @@ class XpbdSolver {
   /// keep_contacts skips the contact detection (the last contact set is used).
   int refine(ClothState& s, const SimParams& p, const DrapeParams& d, RunControl& rc, double* residual,
              bool keep_anchor = false, bool keep_contacts = false);
+  /// ∇ₓ²E (J/m²) at x (m) over the free DOFs with the held contacts and anchors, assembled as
+  /// refine() assembles its Newton steps (NewtonSystem: in place on the cached pattern) — equal to
+  /// energy_hessian(energy_context(gravity), x, free_dofs(), project_psd) bit for bit.
+  Eigen::SparseMatrix<double> newton_hessian(const RowMatX3d& x, const Vec3& gravity, bool project_psd);
   const RowMatX3d& anchor() const { return anchor_; }
   /// Sets the anchors a (#V×3, m) that the next refine(keep_anchor = true) ties the cloth to —
   /// e.g. a target shape for a guided equilibrium (pipeline/guided_drape.py).
@@ -132,6 +137,7 @@ class XpbdSolver {
   double anchor_k_ = 0.0;
   std::uint64_t revision_ = 0;
   FastSweep fast_;  // packed for revision fast_.revision
+  NewtonSystem newton_;  // refine()'s Hessian pattern and symbolic factorization
   void bump_revision();
 };
 

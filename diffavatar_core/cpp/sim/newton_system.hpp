@@ -1,0 +1,49 @@
+// The linear system of the quasi-static refinement's Newton steps (XpbdSolver::refine): ∇ₓ²E over
+// the free DOFs and its LDLᵀ factorization. Every Newton iteration of every refine() has the same
+// sparsity — the mesh's element blocks; contacts and anchors add to vertices' diagonal blocks —
+// so the pattern, each element entry's slot in it and the factorization's symbolic analysis (the
+// fill-reducing ordering) are computed once and kept while `dof` and the pattern stay the same;
+// an iteration only writes values. The matrix is energy_hessian's bit for bit (the same entries
+// summed in the same order, cloth_energy.hpp scatter_hessian), so the Newton iterates are too.
+// Copies start with an empty cache. Units: J/m² (N/m).
+#pragma once
+#include <Eigen/SparseCholesky>
+#include <memory>
+#include <vector>
+
+#include "sim/cloth_energy.hpp"
+
+namespace diffavatar {
+
+class NewtonSystem {
+ public:
+  using Matrix = Eigen::SparseMatrix<double>;
+  using Factorization = Eigen::SimplicialLDLT<Matrix>;
+
+  NewtonSystem() = default;
+  NewtonSystem(const NewtonSystem&) {}
+  NewtonSystem& operator=(const NewtonSystem&) {
+    *this = NewtonSystem();
+    return *this;
+  }
+  NewtonSystem(NewtonSystem&&) = default;
+  NewtonSystem& operator=(NewtonSystem&&) = default;
+
+  /// ∇ₓ²E at x over the free DOFs (dof as energy_hessian's), element Hessians PSD-projected when
+  /// project_psd: equal to energy_hessian(ctx, x, dof, project_psd) in pattern and every value.
+  const Matrix& assemble(const EnergyContext& ctx, const RowMatX3d& x, const std::vector<int>& dof, bool project_psd);
+  /// LDLᵀ of A (the assembled matrix or one with the same pattern, e.g. a damped diagonal); the
+  /// symbolic analysis is redone only when A's pattern differs from the last one factorized.
+  const Factorization& factorize(const Matrix& A);
+
+ private:
+  void build(const EnergyContext& ctx, const RowMatX3d& x, const std::vector<int>& dof, const ElementHessians& eh);
+  std::vector<int> dof_;        // the free DOFs the pattern was built for (empty: none yet)
+  Matrix H_;                    // the pattern; values of the last assemble()
+  std::vector<int> slot_;       // value index of every fixed (element) entry, in scatter order
+  std::vector<int> diag_slot_;  // 9 per vertex: value index of (dof+i, dof+j), −1 if not in the pattern
+  std::unique_ptr<Factorization> ldlt_ = std::make_unique<Factorization>();
+  std::vector<int> outer_, inner_;  // the pattern ldlt_'s symbolic analysis is of
+};
+
+}  // namespace diffavatar
