@@ -1,0 +1,87 @@
+"""Benchmark: the Newton refinement's Hessian assembly (sim/newton_system.hpp) against the triplet
+assembly it replaced (cloth_energy.cpp energy_hessian: Eigen triplets + setFromTriplets on every
+iteration), side by side in this run, and what a Newton iteration of the recovery costs. Prints JSON.
+
+Run: `.venv/bin/python bench/newton.py [--edges 0.04 0.02] [--repeats 20]`.
+
+For each edge length (m) the t-shirt template is draped on the default body (XPBD + Newton), its
+rest shape then scaled by 1.01 (a pattern step of the co-optimization) and:
+  * assembly_ms: ∇²E at the draped state with its contacts and anchors, PSD-projected (what a
+    Newton step far from equilibrium assembles) and exact, by the reference (`energy_hessian`)
+    and by the cached in-place assembly (`newton_hessian`) — the same matrix bit for bit
+    (checked here and in test/sim/test_newton_system.py); best of `--repeats`, interleaved so both
+    see the same load. Both include the same copy of the matrix to Python.
+  * newton: the warm re-equilibration after the rest-shape step (Cloth.refine, anchors at the
+    drape, κ = 1/s²): iterations, wall ms per iteration (gradient, assembly, LDLᵀ, line search).
+Times in ms on this machine; quote the ratios (2-core machines are noisy).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import time
+
+os.environ.setdefault("OMP_WAIT_POLICY", "passive")
+
+import numpy as np  # noqa: E402
+
+import diffavatar_core as dc  # noqa: E402
+from diffavatar_core.sim.drape_job import build  # noqa: E402
+
+G = np.array([0.0, -9.81, 0.0])
+
+
+def best_ms(fn, repeats):
+    t = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        t.append(time.perf_counter() - t0)
+    return 1e3 * min(t)
+
+
+def case(edge, repeats):
+    cloth, _, _ = build("tshirt", edge=edge)
+    r = cloth.drape(max_steps=400, residual_tol=1e-7, refine_iterations=120, raise_on_divergence=False)
+    s = cloth.solver
+    x = np.array(cloth.x)
+    out = {"edge_m": edge, "vertices": int(cloth.model.num_vertices), "triangles": int(len(cloth.model.faces)),
+           "hinges": int(len(cloth.model.hinges)), "drape_converged": bool(r.converged),
+           "contacts": int(s.num_contacts)}
+    for project in (True, False):
+        A, B = s.energy_hessian(x, G, project), s.newton_hessian(x, G, project)
+        same = bool(np.array_equal(A.indptr, B.indptr) and np.array_equal(A.indices, B.indices)
+                    and np.array_equal(A.data, B.data))
+        ref, ours = [], []
+        for _ in range(repeats):   # interleaved: both see the same load
+            ref.append(best_ms(lambda: s.energy_hessian(x, G, project), 1))
+            ours.append(best_ms(lambda: s.newton_hessian(x, G, project), 1))
+        key = "projected" if project else "exact"
+        out[f"assembly_{key}"] = {"nonzeros": int(A.nnz), "identical": same, "reference_ms": min(ref),
+                                  "ours_ms": min(ours), "speedup_vs_reference": min(ref) / min(ours)}
+    rest = np.asarray(cloth.control.rest)
+    cloth.set_control(rest=rest * 1.01)
+    t0 = time.perf_counter()
+    it, res = cloth.refine(keep_anchor=False, residual_tol=1e-7, refine_iterations=120, anchor_stiffness=1.0)
+    wall = time.perf_counter() - t0
+    out["newton"] = {"iterations": int(it), "residual": float(res), "wall_ms": 1e3 * wall,
+                     "ms_per_iteration": 1e3 * wall / max(it, 1)}
+    return out
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--edges", type=float, nargs="+", default=[0.04, 0.02], help="template edge lengths (m)")
+    ap.add_argument("--repeats", type=int, default=20)
+    a = ap.parse_args(argv)
+    out = {"benchmark": "newton_assembly", "date": time.strftime("%Y-%m-%d"),
+           "machine": f"{platform.machine()}, {os.cpu_count()} logical cores", "threads": dc.num_threads(),
+           "load_average_start": [round(v, 2) for v in os.getloadavg()],
+           "cases": [case(e, a.repeats) for e in a.edges]}
+    print(json.dumps(out, indent=1))
+
+
+if __name__ == "__main__":
+    main()
