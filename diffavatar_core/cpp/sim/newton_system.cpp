@@ -65,6 +65,7 @@ const NewtonSystem::Factorization& NewtonSystem::factorize(const Matrix& A) {
   const bool same = outer_.size() == static_cast<std::size_t>(A.outerSize() + 1) &&
                     inner_.size() == static_cast<std::size_t>(A.nonZeros()) && std::equal(outer_.begin(), outer_.end(), o) &&
                     std::equal(inner_.begin(), inner_.end(), in);
+  if (!ldlt_) ldlt_ = std::make_unique<Factorization>();  // a moved-from system
   if (!same) {
     ldlt_->analyzePattern(A);
     outer_.assign(o, o + A.outerSize() + 1);
