@@ -33,13 +33,10 @@ from diffavatar_core.sim.drape_job import build  # noqa: E402
 G = np.array([0.0, -9.81, 0.0])
 
 
-def best_ms(fn, repeats):
-    t = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        t.append(time.perf_counter() - t0)
-    return 1e3 * min(t)
+def ms(fn):
+    t0 = time.perf_counter()
+    fn()
+    return 1e3 * (time.perf_counter() - t0)
 
 
 def case(edge, repeats):
@@ -56,8 +53,8 @@ def case(edge, repeats):
                     and np.array_equal(A.data, B.data))
         ref, ours = [], []
         for _ in range(repeats):   # interleaved: both see the same load
-            ref.append(best_ms(lambda: s.energy_hessian(x, G, project), 1))
-            ours.append(best_ms(lambda: s.newton_hessian(x, G, project), 1))
+            ref.append(ms(lambda: s.energy_hessian(x, G, project)))
+            ours.append(ms(lambda: s.newton_hessian(x, G, project)))
         key = "projected" if project else "exact"
         out[f"assembly_{key}"] = {"nonzeros": int(A.nnz), "identical": same, "reference_ms": min(ref),
                                   "ours_ms": min(ours), "speedup_vs_reference": min(ref) / min(ours)}

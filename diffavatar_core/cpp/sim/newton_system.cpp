@@ -38,7 +38,7 @@ void NewtonSystem::build(const EnergyContext& ctx, const RowMatX3d& x, const std
 const NewtonSystem::Matrix& NewtonSystem::assemble(const EnergyContext& ctx, const RowMatX3d& x,
                                                    const std::vector<int>& dof, bool project_psd) {
   const ElementHessians eh = element_hessians(ctx, x, project_psd);
-  if (dof_.empty() || dof != dof_ || slot_.empty()) build(ctx, x, dof, eh);
+  if (slot_.empty() || dof != dof_) build(ctx, x, dof, eh);
   double* val = H_.valuePtr();
   std::fill(val, val + H_.nonZeros(), 0.0);
   std::size_t k = 0;
@@ -54,7 +54,7 @@ const NewtonSystem::Matrix& NewtonSystem::assemble(const EnergyContext& ctx, con
       });
   if (outside) {  // the triplet assembly's pattern has it: use that matrix (and rebuild next time)
     H_ = energy_hessian(ctx, x, dof, project_psd);
-    dof_.clear();
+    slot_.clear();
   }
   return H_;
 }

@@ -38,9 +38,9 @@ class NewtonSystem {
 
  private:
   void build(const EnergyContext& ctx, const RowMatX3d& x, const std::vector<int>& dof, const ElementHessians& eh);
-  std::vector<int> dof_;        // the free DOFs the pattern was built for (empty: none yet)
+  std::vector<int> dof_;        // the free DOFs the pattern was built for
   Matrix H_;                    // the pattern; values of the last assemble()
-  std::vector<int> slot_;       // value index of every fixed (element) entry, in scatter order
+  std::vector<int> slot_;       // value index of every fixed (element) entry, in scatter order (empty: no pattern)
   std::vector<int> diag_slot_;  // 9 per vertex: value index of (dof+i, dof+j), −1 if not in the pattern
   std::unique_ptr<Factorization> ldlt_ = std::make_unique<Factorization>();
   std::vector<int> outer_, inner_;  // the pattern ldlt_'s symbolic analysis is of
