@@ -182,6 +182,15 @@ void bind_sim(py::module_& m) {
       .def_property_readonly("anchor", &XpbdSolver::anchor)
       .def("residual", &XpbdSolver::residual, py::arg("x"), py::arg("gravity"))
       .def("max_penetration", &XpbdSolver::max_penetration, py::arg("x"))
+      .def_property("contact_query_cache", &XpbdSolver::use_query_cache, &XpbdSolver::set_use_query_cache,
+                    "Whether step() detects contacts through its per-vertex query cache (default True; "
+                    "the same contacts either way: sim/contact_query_cache.hpp).")
+      .def_property_readonly(
+          "contact_query_stats",
+          [](const XpbdSolver& s) {
+            return std::make_pair(s.query_cache().queries, s.query_cache().skipped);
+          },
+          "(tree searches made, vertices skipped) by step()'s contact detections with the cache.")
       .def_property_readonly("num_contacts", [](const XpbdSolver& s) { return s.contacts().size(); })
       .def_property_readonly(
           "contact_pairs",

@@ -24,19 +24,21 @@ std::vector<AabbTree::Box> TriangleMeshBvh::boxes() const {
 }
 
 SurfaceHit TriangleMeshBvh::closest(const Vec3& p, double max_dist) const {
-  SurfaceHit hit;
-  double best_sq;
-  const double max_sq = std::isfinite(max_dist) ? max_dist * max_dist : std::numeric_limits<double>::infinity();
+  return closest_below(p, std::isfinite(max_dist) ? max_dist * max_dist : std::numeric_limits<double>::infinity());
+}
+
+double TriangleMeshBvh::dist_sq(int t, const Vec3& p) const {
   Vec3 bary;
   int region;
-  const int t = tree_.closest(
-      p,
-      [&](int tri) {
-        const Vec3 q = closest_point_triangle(p, V_.row(F_(tri, 0)).transpose(), V_.row(F_(tri, 1)).transpose(),
-                                              V_.row(F_(tri, 2)).transpose(), bary, region);
-        return (q - p).squaredNorm();
-      },
-      max_sq, best_sq);
+  const Vec3 q = closest_point_triangle(p, V_.row(F_(t, 0)).transpose(), V_.row(F_(t, 1)).transpose(),
+                                        V_.row(F_(t, 2)).transpose(), bary, region);
+  return (q - p).squaredNorm();
+}
+
+SurfaceHit TriangleMeshBvh::closest_below(const Vec3& p, double bound_sq) const {
+  SurfaceHit hit;
+  double best_sq;
+  const int t = tree_.closest(p, [&](int tri) { return dist_sq(tri, p); }, bound_sq, best_sq);
   if (t < 0) return hit;
   hit.tri = t;
   hit.point = closest_point_triangle(p, V_.row(F_(t, 0)).transpose(), V_.row(F_(t, 1)).transpose(),

@@ -28,6 +28,13 @@ class TriangleMeshBvh {
   void set_vertices(const RefX3d& V);
   /// Closest surface point to p within max_dist (default: unbounded).
   SurfaceHit closest(const Vec3& p, double max_dist = std::numeric_limits<double>::infinity()) const;
+  /// The same search with the squared bound given: the closest triangle with squared distance
+  /// below bound_sq. For any bound above the minimum it returns the same triangle (the first of
+  /// equally close ones in the tree's fixed visiting order: a bound prunes only nodes that
+  /// cannot hold a closer one), so a caller that knows a near triangle can tighten the search.
+  SurfaceHit closest_below(const Vec3& p, double bound_sq) const;
+  /// Squared distance from p to triangle t (the value the searches compare).
+  double dist_sq(int t, const Vec3& p) const;
   /// Calls visit(tri) for each triangle whose box, grown by `radius`, contains p.
   template <class Visit>
   void triangles_near(const Vec3& p, double radius, Visit&& visit) const {

@@ -1,6 +1,7 @@
 #include "sim/body_collider.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <stdexcept>
 
 #include "geometry/edge_triangles.hpp"
@@ -40,16 +41,45 @@ void BodyCollider::set_vertices(const RefX3d& V) {
 }
 
 std::vector<Contact> BodyCollider::detect(const RowMatX3d& x, const VecXd& inv_mass, double radius,
-                                          bool valleys) const {
+                                          bool valleys, ContactQueryCache* cache) const {
   std::vector<Contact> out;
   if (!bvh_) return out;
   if (valleys && !edge_neighbours_) throw std::logic_error("BodyCollider::detect: built without valleys");
   const int n = static_cast<int>(x.rows());
   std::vector<SurfaceHit> hits(n);
+  const double r_sq = radius * radius;  // an uncached search's bound: hits closer than this
+  if (!cache) {
 #pragma omp parallel for schedule(static) if (n >= 256)
-  for (int i = 0; i < n; ++i) {
-    if (inv_mass[i] == 0.0) continue;
-    hits[i] = bvh_->closest(x.row(i).transpose(), radius);
+    for (int i = 0; i < n; ++i) {
+      if (inv_mass[i] == 0.0) continue;
+      hits[i] = bvh_->closest_below(x.row(i).transpose(), r_sq);
+    }
+  } else {
+    cache->fit(n);
+    const double reach = 2.0 * radius;
+    std::int64_t searched = 0, skipped = 0;
+#pragma omp parallel for schedule(static) reduction(+ : searched, skipped) if (n >= 256)
+    for (int i = 0; i < n; ++i) {
+      if (inv_mass[i] == 0.0) continue;
+      const Vec3 p = x.row(i).transpose();
+      // farther than radius for sure (1 nm above the bound's round-off): no contact, no search
+      if (cache->lower[i] - (p - cache->at[i]).norm() > radius + 1e-9) {
+        ++skipped;
+        continue;
+      }
+      ++searched;
+      // bounded by the last closest triangle's distance (just above it, so that triangle or a
+      // closer one is found) when that is within reach
+      double bound = reach * reach;
+      if (cache->tri[i] >= 0) bound = std::min(bound, bvh_->dist_sq(cache->tri[i], p) * (1.0 + 1e-12) + 1e-300);
+      const SurfaceHit h = bvh_->closest_below(p, bound);
+      cache->at[i] = p;
+      cache->tri[i] = h.tri;
+      cache->lower[i] = h.tri >= 0 ? std::sqrt(h.dist_sq) : reach;
+      if (h.tri >= 0 && h.dist_sq < r_sq) hits[i] = h;
+    }
+    cache->queries += searched;
+    cache->skipped += skipped;
   }
   const RowMatX3d& V = bvh_->vertices();
   const RowMatX3i& F = bvh_->faces();

@@ -9,6 +9,7 @@
 #include "common/types.hpp"
 #include "geometry/triangle_mesh_bvh.hpp"
 #include "sim/contact_kernel.hpp"
+#include "sim/contact_query_cache.hpp"
 
 namespace diffavatar {
 
@@ -74,7 +75,10 @@ class BodyCollider {
   /// both planes; one plane per vertex — whichever is closer — switches at the bisector, and a
   /// solve holding one set ends where the other is closer (a re-detected set never reaches
   /// equilibrium). T''s plane extends below T, so it adds nothing away from the crease.
-  std::vector<Contact> detect(const RowMatX3d& x, const VecXd& inv_mass, double radius, bool valleys = false) const;
+  /// cache (or null): the queries' memory for this body pose (sim/contact_query_cache.hpp) — the
+  /// same contacts, fewer tree searches.
+  std::vector<Contact> detect(const RowMatX3d& x, const VecXd& inv_mass, double radius, bool valleys = false,
+                              ContactQueryCache* cache = nullptr) const;
   /// Signed distance of p to the body (m): positive outside, by the closest triangle's normal.
   double signed_distance(const Vec3& p) const;
   /// Deepest penetration below the body surface over the vertices of x (m, ≥ 0).

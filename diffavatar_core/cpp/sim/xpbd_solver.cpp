@@ -32,6 +32,7 @@ void XpbdSolver::set_control(ClothControl control) {
   if (model_.masses_follow_rest) set_lumped_masses(model_, control.rest);
   control_ = std::move(control);
   collider_.set_vertices(control_.body_vertices);
+  query_cache_.clear();  // its distance bounds were for the previous pose
   // Held contacts follow the body: a smooth contact's barycentrics (its detection point's closest
   // point in its region) and every contact's plane.
   if (model_.smooth_contact)
@@ -236,7 +237,8 @@ double XpbdSolver::step(ClothState& s, const SimParams& p, StepTape* tape, const
   if (contacts)
     set_contacts(*contacts);
   else
-    set_contacts(collider_.detect(s.x, m.inv_mass, m.thickness + p.contact_radius + std::min(vpred * p.dt, 0.1)));
+    set_contacts(collider_.detect(s.x, m.inv_mass, m.thickness + p.contact_radius + std::min(vpred * p.dt, 0.1),
+                                  false, use_query_cache_ ? &query_cache_ : nullptr));
   s.lambda_tri.setZero();
   s.lambda_hinge.setZero();
   s.lambda_seam.setZero();

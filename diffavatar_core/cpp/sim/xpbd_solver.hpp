@@ -120,6 +120,11 @@ class XpbdSolver {
   void detect_contacts(const RowMatX3d& x, const SimParams& p);
   const std::vector<Contact>& contacts() const { return contacts_; }
   std::vector<int> free_dofs() const;
+  /// Whether step() detects through its ContactQueryCache (default) — the same contacts either
+  /// way (sim/contact_query_cache.hpp); off for the test and the benchmark's reference.
+  void set_use_query_cache(bool on) { use_query_cache_ = on; }
+  bool use_query_cache() const { return use_query_cache_; }
+  const ContactQueryCache& query_cache() const { return query_cache_; }
 
  private:
   /// Projects constraint c; `rec` (or null) receives its record (sim/sweep_tape.hpp).
@@ -130,6 +135,8 @@ class XpbdSolver {
   SweepPlan plan_;
   SweepTapeLayout layout_;
   BodyCollider collider_;
+  ContactQueryCache query_cache_;  // step()'s detections on the current body pose
+  bool use_query_cache_ = true;
   std::vector<Contact> contacts_;
   std::vector<ContactFrame> frames_;  // of contacts_, on control_'s body
   void set_contacts(std::vector<Contact> contacts);
