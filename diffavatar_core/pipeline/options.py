@@ -45,7 +45,8 @@ class RecoverOptions:
     output_edge_length: float = 0.0
     output_settle_tol: float = 5e-4
     output_drape_steps: int = 1500
-    output_drape_sweeps: int = 400
+    output_drape_sweeps: int = 200
+    output_drape_substeps: int = 8
     output_friction: float = 0.0
     contact_normals: str = "face"
     parametrization: str = "cage"
@@ -96,7 +97,7 @@ class RecoverOptions:
         def bad(name, why):
             raise ValueError(f"recover options: {name} {why}, got {getattr(self, name)!r}")
         for name in ("iterations", "samples", "drape_steps", "drape_rounds", "drape_iterations", "patience", "bending_after",
-                     "body_after", "output_drape_steps", "output_drape_sweeps", "fresh_every", "reevaluations",
+                     "body_after", "output_drape_steps", "output_drape_sweeps", "output_drape_substeps", "fresh_every", "reevaluations",
                      "measurement_fit_iterations"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < 0:
@@ -134,7 +135,7 @@ class RecoverOptions:
         for name in ("optimize_body", "masses_follow_rest", "template_sizing"):
             if not isinstance(getattr(self, name), bool):
                 bad(name, "must be true or false")
-        for name in ("output_drape_steps", "output_drape_sweeps", "drape_rounds"):
+        for name in ("output_drape_steps", "output_drape_sweeps", "output_drape_substeps", "drape_rounds"):
             if getattr(self, name) < 1:
                 bad(name, "must be at least 1")
         if not 0.005 <= self.edge_length <= 0.2:

@@ -181,18 +181,20 @@ def _fine_output(g, cage, co, fine: Garment, material, body_vertices, body_faces
     it stands still (Cloth.settle: no vertex moves more than output_settle_tol in 0.5 s). Not
     Newton: at ~10k vertices its iterations cost ~1 s and crawl on the buckled cloth (200 of them
     do not converge from this start or from the settled state; docs/simulation.md, "Settled
-    drapes"), and nothing is differentiated here. output_drape_sweeps
-    (400) per step, not `diffavatar drape`'s 100: Gauss–Seidel sweeps converge slower the finer
-    the mesh, and an unconverged cloth is a softer one. On a ~9k-vertex t-shirt 100 sweeps left
-    0.4% mean edge strain where the Newton equilibrium of the coarse mesh has 0.07%; the cloth
-    sagged ~1 cm and its Chamfer to the scan rose by a third (BENCHMARKS.md, stop 27). Raises
+    drapes"), and nothing is differentiated here. output_drape_sweeps (200) per step over
+    output_drape_substeps (8), not `diffavatar drape`'s 100 over 4: Gauss–Seidel sweeps converge
+    slower the finer the mesh, and an unconverged cloth is a softer one. On a ~9k-vertex t-shirt
+    100 sweeps over 4 substeps left 0.4% mean edge strain where the Newton equilibrium of the
+    coarse mesh has 0.07%; the cloth sagged ~1 cm and its Chamfer to the scan rose by a third
+    (BENCHMARKS.md, stop 27); 200 over 8 leave 0.13%, 400 over 4 0.12% at twice the cost per
+    step (stop 46). Raises
     ValueError when the cloth does not settle."""
     rest = transfer_pattern(g, cage, co.rest[cage.handles], fine)   # MVC interpolate: ζ = x̄[handles]
     x0 = transfer_positions(g, co.x, fine)
     cloth = _garment_cloth(fine, rest, x0, material, (body_vertices, body_faces), co.bend_stiffness,
                            contact_normals=opts.contact_normals)
     s = settle_carried(cloth, x0, body_vertices, body_faces, opts.output_drape_steps, opts.output_drape_sweeps,
-                       opts.output_settle_tol, cancel, opts.output_friction)
+                       opts.output_settle_tol, cancel, opts.output_friction, opts.output_drape_substeps)
     if not s.settled:
         raise ValueError(s.message)
     return fine, rest, np.array(cloth.x), s

@@ -168,7 +168,7 @@ def settle_fine_truth(g: Garment, x, fine: Garment, body, bend_stiffness: float,
     cloth = _truth_cloth(fine, x0, body, bend_stiffness, compliance_scale, contact_normals)
     mu = RecoverOptions.output_friction if friction is None else friction
     s = settle_carried(cloth, x0, body[0], body[1], FINE_TRUTH_STEPS, RecoverOptions.output_drape_sweeps,
-                       cancel=cancel, friction=mu)
+                       cancel=cancel, friction=mu, substeps=RecoverOptions.output_drape_substeps)
     if not s.settled:
         raise RuntimeError(f"the fine ground-truth drape did not settle: {s.message}")
     return cloth, s
