@@ -68,10 +68,14 @@ std::vector<Contact> BodyCollider::detect(const RowMatX3d& x, const VecXd& inv_m
         continue;
       }
       ++searched;
-      // bounded by the last closest triangle's distance (just above it, so that triangle or a
-      // closer one is found) when that is within reach
+      // bounded by the last closest triangle's distance when that is within reach, plus 1 nm: the
+      // boxes above that triangle then pass the bound although their distances and the
+      // triangle's are rounded differently (~1e-16 m), so it or a closer one is found
       double bound = reach * reach;
-      if (cache->tri[i] >= 0) bound = std::min(bound, bvh_->dist_sq(cache->tri[i], p) * (1.0 + 1e-12) + 1e-300);
+      if (cache->tri[i] >= 0) {
+        const double d = std::sqrt(bvh_->dist_sq(cache->tri[i], p)) + 1e-9;
+        bound = std::min(bound, d * d);
+      }
       const SurfaceHit h = bvh_->closest_below(p, bound);
       cache->at[i] = p;
       cache->tri[i] = h.tri;
