@@ -8,7 +8,7 @@ Run: `.venv/bin/python bench/contact_query.py [--edge 0.01] [--substeps 4 16] [-
 The t-shirt template at `--edge` (m; 0.01 is the recovery's ~10k-vertex output mesh) is sewn and
 dropped onto the default body for 60 steps (fast sweep, 4 substeps), so that its shoulders and
 back lie on the body; from that state, for each substep count, `--steps` steps of 1/120 s with
-the output drape's 400 single-precision sweeps per step (RecoverOptions.output_drape_sweeps),
+the output drape's 200 single-precision sweeps per step (RecoverOptions.output_drape_sweeps),
 cache off (reference) and on, interleaved, each run from the same state with an empty cache:
   * ms_per_step (best of --repeats) and the ratio;
   * identical: the final positions and contact sets of the two runs are equal bit for bit
