@@ -21,7 +21,8 @@ is the default before stop 41); to_surface / to_points (L_interior's garment sam
 garment surface / to the nearest of its interior samples, `interior_to`); guided_K (the scan-guided drapes'
 spring stiffness κ_g = K per s², e.g. guided_1e5); bendtry_D (bending candidates: the bending × 10^d tried at
 every check, `bending_candidates`; offsets in decades joined by +, m for minus, e.g. bendtry_1+m1; @M sets
-`bending_margin`, e.g. bendtry_1+m1@0).
+`bending_margin`, e.g. bendtry_1+m1@0); outdrag_K (with --output-edge: the fine output's drape with a velocity
+drag of K per s, `output_drape_damping`, e.g. outdrag_4, the simulator's own; the truths keep the default's).
 
 The floor: each case's truth.chamfer_truth_cm is the truth's own drape against the scan (the scan's
 noise, resampling and holes; SyntheticCase.truth_chamfer_cm), so each variant's chamfer_ratio_floor
@@ -64,7 +65,7 @@ VARIANTS = ("full", "no_cage", "no_seam", "no_curvature")
 # and with another weight σ of the interior term
 EXTRA_VARIANTS = ("euclidean", "no_cage_euclidean", "unguided", "no_measurement_fit", "fixed_masses", "stretch", "bending_step_1",
                   "robust_boundary", "unsized", "interior_K", "to_surface", "to_points",
-                  "guided_K", "bendtry_D")   # interior_K: σ = K per m², e.g. interior_1; guided_K: κ_g = K per s² (K+L+…: each in turn)
+                  "guided_K", "bendtry_D", "outdrag_K")   # interior_K: σ = K per m², e.g. interior_1; guided_K: κ_g = K per s² (K+L+…: each in turn)
 
 
 def corner_edge_lengths(g, corners_from=None) -> list:
@@ -154,6 +155,12 @@ def options_for(variant, iterations, output_edge=0.0, friction=None, contact_nor
             raise ValueError(f"variant {variant!r}: bendtry_D needs offsets in decades joined by +, "
                              "e.g. bendtry_1+m1 (m: minus), optionally @margin, e.g. bendtry_1+m1@0") from None
         return o.with_(bending_candidates=offsets, bending_margin=margin)
+    if variant.startswith("outdrag_"):   # the fine output drape's velocity drag (1/s), set to the number
+        try:
+            drag = float(variant[len("outdrag_"):])
+        except ValueError:
+            raise ValueError(f"variant {variant!r}: outdrag_K needs a number K (1/s), e.g. outdrag_4") from None
+        return o.with_(output_drape_damping=drag)
     if variant in ("to_surface", "to_points"):   # garment samples measured to the scan's surface / nearest scan point
         return o.with_(interior_to=variant[3:])
     if variant == "bending_step_1":   # L-BFGS's unit of log10 bending: 1 decade instead of 0.1

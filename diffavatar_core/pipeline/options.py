@@ -47,6 +47,7 @@ class RecoverOptions:
     output_drape_steps: int = 1500
     output_drape_sweeps: int = 200
     output_drape_substeps: int = 8
+    output_drape_damping: float = 20.0
     output_friction: float = 0.0
     contact_normals: str = "face"
     parametrization: str = "cage"
@@ -125,7 +126,7 @@ class RecoverOptions:
         if isinstance(m, bool) or not isinstance(m, (int, float)) or not 0 <= m < 1:
             bad("bending_margin", "must be a fraction in [0, 1)")
         for name in ("length_tolerance_pct", "length_tolerance_min", "sobolev_length", "reevaluate_tol",
-                     "length_smoothing", "output_friction", "boundary_scale"):
+                     "length_smoothing", "output_friction", "boundary_scale", "output_drape_damping"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
                 bad(name, "must be a number >= 0")

@@ -187,14 +187,16 @@ def _fine_output(g, cage, co, fine: Garment, material, body_vertices, body_faces
     100 sweeps over 4 substeps left 0.4% mean edge strain where the Newton equilibrium of the
     coarse mesh has 0.07%; the cloth sagged ~1 cm and its Chamfer to the scan rose by a third
     (BENCHMARKS.md, stop 27); 200 over 8 leave 0.13%, 400 over 4 0.12% at twice the cost per
-    step (stop 46). Raises
+    step (stop 46). A velocity drag of output_drape_damping (20/s, not the simulator's 4) stills
+    the carried cloth in ~60% of the steps; it vanishes at rest (stop 47). Raises
     ValueError when the cloth does not settle."""
     rest = transfer_pattern(g, cage, co.rest[cage.handles], fine)   # MVC interpolate: ζ = x̄[handles]
     x0 = transfer_positions(g, co.x, fine)
     cloth = _garment_cloth(fine, rest, x0, material, (body_vertices, body_faces), co.bend_stiffness,
                            contact_normals=opts.contact_normals)
     s = settle_carried(cloth, x0, body_vertices, body_faces, opts.output_drape_steps, opts.output_drape_sweeps,
-                       opts.output_settle_tol, cancel, opts.output_friction, opts.output_drape_substeps)
+                       opts.output_settle_tol, cancel, opts.output_friction, opts.output_drape_substeps,
+                       opts.output_drape_damping)
     if not s.settled:
         raise ValueError(s.message)
     return fine, rest, np.array(cloth.x), s

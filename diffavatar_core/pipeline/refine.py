@@ -62,14 +62,16 @@ def push_outside(x, body_vertices, body_faces, thickness: float, smooth: bool = 
 
 
 def settle_carried(cloth, x0, body_vertices, body_faces, max_steps: int, sweeps: int,
-                   displacement_tol: float = 5e-4, cancel=None, friction: float = 0.0, substeps: int = SUBSTEPS):
+                   displacement_tol: float = 5e-4, cancel=None, friction: float = 0.0, substeps: int = SUBSTEPS,
+                   damping: float = 4.0):
     """`cloth` (a sim.Cloth of a fine mesh) reset to x0 (V, 3) m — a coarse drape carried to its
     vertices (transfer_positions) — pushed out of the body, then draped by XPBD (single-
     precision sweeps, `substeps` substeps, `sweeps` sweeps per step) until it stands still:
     Cloth.settle, no vertex moving more than displacement_tol (m) in 0.5 s; friction: Coulomb μ
-    of the cloth on the body (sim/friction_kernel.hpp; 0 = frictionless). Returns its
+    of the cloth on the body (sim/friction_kernel.hpp; 0 = frictionless); damping: the drape's
+    velocity drag (1/s, Cloth.settle). Returns its
     SettleResult. Shared by the fine output (recovery) and the fine ground truth (synthetic)."""
     cloth.reset(push_outside(x0, body_vertices, body_faces, float(cloth.model.thickness),
                              bool(cloth.model.smooth_contact)))
     return cloth.settle(max_steps=max_steps, displacement_tol=displacement_tol, iterations=sweeps,
-                        substeps=substeps, fast=True, cancel=cancel, friction=friction)
+                        substeps=substeps, fast=True, cancel=cancel, friction=friction, damping=damping)

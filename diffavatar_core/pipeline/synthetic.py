@@ -114,7 +114,7 @@ MAX_TOP_DROP = 0.15
 
 
 # XPBD steps at most for a fine ground truth's settle (make_case's truth_edge); it is settled as
-# the recovery settles its fine output (refine.settle_carried, the same sweeps per step)
+# the recovery settles its fine output (refine.settle_carried, the same sweeps, substeps and damping)
 FINE_TRUTH_STEPS = 1500
 
 
@@ -168,7 +168,8 @@ def settle_fine_truth(g: Garment, x, fine: Garment, body, bend_stiffness: float,
     cloth = _truth_cloth(fine, x0, body, bend_stiffness, compliance_scale, contact_normals)
     mu = RecoverOptions.output_friction if friction is None else friction
     s = settle_carried(cloth, x0, body[0], body[1], FINE_TRUTH_STEPS, RecoverOptions.output_drape_sweeps,
-                       cancel=cancel, friction=mu, substeps=RecoverOptions.output_drape_substeps)
+                       cancel=cancel, friction=mu, substeps=RecoverOptions.output_drape_substeps,
+                       damping=RecoverOptions.output_drape_damping)
     if not s.settled:
         raise RuntimeError(f"the fine ground-truth drape did not settle: {s.message}")
     return cloth, s

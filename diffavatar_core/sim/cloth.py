@@ -315,7 +315,7 @@ class Cloth:
 
     def settle(self, max_steps: int = 1500, window_steps: int = 60, displacement_tol: float = 5e-4,
                iterations: int = 100, substeps: int = 4, fast: bool = True, dt: float = 1 / 120,
-               cancel=None, friction: float = 0.0, check_steps: int = 10) -> SettleResult:
+               cancel=None, friction: float = 0.0, check_steps: int = 10, damping: float = 4.0) -> SettleResult:
         """XPBD drape until the cloth stands still: until no vertex moved more than
         displacement_tol (m) over the last window_steps steps of dt (s), or max_steps. The window
         slides: every check_steps steps (a divisor of window_steps) the positions are kept and
@@ -328,7 +328,10 @@ class Cloth:
         speed criterion never fires, because single substeps jitter where a window does not.
         Settled also needs no vertex deeper in the body than 10% of the collision thickness.
         Starts from the current state (velocities kept); releases the GIL in the sweeps. friction:
-        Coulomb μ of the cloth on the body (as in step)."""
+        Coulomb μ of the cloth on the body (as in step). damping (1/s): v ← v·exp(−damping·dt) per
+        step, a drag that vanishes at rest, so the still state is an undamped one too (the check
+        above is on positions, not speeds); a stronger drag stops the carried cloth's swinging and
+        the jitter of its unconverged sweeps sooner (recovery: output_drape_damping)."""
         n = _validate.positive_int("max_steps", max_steps)
         w = _validate.positive_int("window_steps", window_steps)
         c = _validate.positive_int("check_steps", check_steps)
@@ -336,13 +339,16 @@ class Cloth:
             raise ValueError(f"check_steps: expected a divisor of window_steps ({w}), got {c}")
         if not (np.isfinite(displacement_tol) and displacement_tol > 0):
             raise ValueError(f"displacement_tol: expected a distance > 0 m, got {displacement_tol}")
+        if not (np.isfinite(damping) and damping >= 0):
+            raise ValueError(f"damping: expected a rate >= 0 (1/s), got {damping}")
         t0 = time.perf_counter()
         steps, moved, settled, message = 0, float("inf"), False, ""
         kept = [(0, np.array(self.state.x))]   # (step, positions) at the checks of the last window
         while steps < n:
             k = min(c, n - steps)
             r = self.drape(max_steps=k, min_steps=k, refine=False, iterations=iterations, substeps=substeps,
-                           fast=fast, dt=dt, raise_on_divergence=False, cancel=cancel, friction=friction)
+                           fast=fast, dt=dt, raise_on_divergence=False, cancel=cancel, friction=friction,
+                           damping=damping)
             steps += r.steps
             if r.diverged:
                 message = r.message
