@@ -188,7 +188,7 @@ def _fine_output(g, cage, co, fine: Garment, material, body_vertices, body_faces
     coarse mesh has 0.07%; the cloth sagged ~1 cm and its Chamfer to the scan rose by a third
     (BENCHMARKS.md, stop 27); 200 over 8 leave 0.13%, 400 over 4 0.12% at twice the cost per
     step (stop 46). A velocity drag of output_drape_damping (20/s, not the simulator's 4) stills
-    the carried cloth in ~60% of the steps; it vanishes at rest (stop 47). Raises
+    the carried cloth in 0.75× the steps (the ~10k benchmark job); it vanishes at rest (stop 47). Raises
     ValueError when the cloth does not settle."""
     rest = transfer_pattern(g, cage, co.rest[cage.handles], fine)   # MVC interpolate: ζ = x̄[handles]
     x0 = transfer_positions(g, co.x, fine)

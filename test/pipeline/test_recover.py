@@ -320,6 +320,9 @@ def test_options_from_node_dict_and_config():
     for mu in (-0.1, float("nan"), "0.3"):
         with pytest.raises(ValueError, match="output_friction"):
             RecoverOptions.from_config(output_friction=mu)
+    for drag in (-1.0, float("inf"), "20"):
+        with pytest.raises(ValueError, match="output_drape_damping"):
+            RecoverOptions.from_config(output_drape_damping=drag)
     with pytest.raises(ValueError, match="contact_normals"):
         RecoverOptions.from_config(contact_normals="phong")
     assert RecoverOptions.from_config(contact_normals="smooth").contact_normals == "smooth"

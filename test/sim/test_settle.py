@@ -6,15 +6,18 @@ converges, releasing little energy and leaving the bulk of the cloth where it wa
 import numpy as np
 import pytest
 
+from diffavatar_core.pipeline import RecoverOptions
 from diffavatar_core.sim import drape_job
 
 TOL = 5e-4   # m per window
 
 
-@pytest.fixture(scope="module", params=[4.0, 30.0], ids=["drag_4", "drag_30"])
+@pytest.fixture(scope="module", params=[4.0, RecoverOptions.output_drape_damping, 60.0],
+                ids=["drag_4", "drag_output", "drag_60"])
 def settled(request):
-    """Settled with the simulator's drag (4/s) and with the recovery's output drape's (30/s):
-    a drag vanishes at rest, so both must be still states of the undamped simulation."""
+    """Settled with the simulator's drag (4/s), with the recovery's output drape's (20/s) and an
+    overdamped one: a drag vanishes at rest, so each must be a still state of the undamped
+    simulation."""
     cloth, g, _ = drape_job.build("tshirt", edge=0.04)
     cloth.sew()
     s = cloth.settle(max_steps=1500, window_steps=60, displacement_tol=TOL, damping=request.param)
