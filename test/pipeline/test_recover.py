@@ -68,8 +68,11 @@ def test_objective_gradient_matches_central_differences(problem, boundary_scale,
     handles = [("handles", k) for k in rng.choice(len(theta["handles"]), 4, replace=False)]
 
     def checks(grads):
-        # small body steps: the body term's closest points switch faces within larger ones
-        h = {"handles": 1e-6, "log_bend": 1e-4, "shape": 1e-6, "pose": 1e-6}
+        # small body steps: the body term's closest points switch faces within larger ones (pose 5
+        # at 1e-5 rad); not too small: each drape's Newton stops somewhere under the 1e-8 residual,
+        # ~1e-13 of noise in φ — at 1e-6 rad 5e-4 of a 1.7e-4 pose derivative on an AVX-512 machine
+        # (stop 47); at 3e-6 the unperturbed run and round-off seeds 1-11 pass there
+        h = {"handles": 1e-6, "log_bend": 1e-4, "shape": 1e-6, "pose": 3e-6}
         picks = handles + [("log_bend", 0), ("shape", 0), ("shape", 1), ("pose", 5),
                            ("pose", int(np.argmax(np.abs(grads["pose"]))))]
         return [(group, k, h[group]) for group, k in picks]
