@@ -96,6 +96,8 @@ def _sim_params(dt, iterations, gravity, damping, contact_radius, max_speed, fas
     if g.shape != (3,) or not np.all(np.isfinite(g)):
         raise ValueError(f"gravity: expected a finite (3,) vector in m/s², got {gravity}")
     p.gravity = g
+    if not (np.isfinite(damping) and damping >= 0):
+        raise ValueError(f"damping: expected a rate >= 0 (1/s), got {damping}")
     p.damping = float(damping)
     p.contact_radius = float(contact_radius)
     p.max_speed = float(max_speed)
@@ -339,8 +341,6 @@ class Cloth:
             raise ValueError(f"check_steps: expected a divisor of window_steps ({w}), got {c}")
         if not (np.isfinite(displacement_tol) and displacement_tol > 0):
             raise ValueError(f"displacement_tol: expected a distance > 0 m, got {displacement_tol}")
-        if not (np.isfinite(damping) and damping >= 0):
-            raise ValueError(f"damping: expected a rate >= 0 (1/s), got {damping}")
         t0 = time.perf_counter()
         steps, moved, settled, message = 0, float("inf"), False, ""
         kept = [(0, np.array(self.state.x))]   # (step, positions) at the checks of the last window

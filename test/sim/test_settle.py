@@ -106,6 +106,10 @@ def test_bad_settle_arguments_are_named():
         cloth.settle(displacement_tol=0.0)
     with pytest.raises(ValueError, match="window_steps"):
         cloth.settle(window_steps=0)
-    for bad in (-1.0, float("nan"), float("inf")):
+    for bad in (-1.0, float("nan"), float("inf")):   # the drag, by settle and by every XPBD entry
         with pytest.raises(ValueError, match="damping"):
             cloth.settle(damping=bad)
+        with pytest.raises(ValueError, match="damping"):
+            cloth.drape(max_steps=1, damping=bad)
+        with pytest.raises(ValueError, match="damping"):
+            cloth.step(1, damping=bad)
