@@ -22,7 +22,9 @@ garment surface / to the nearest of its interior samples, `interior_to`); guided
 spring stiffness κ_g = K per s², e.g. guided_1e5); bendtry_D (bending candidates: the bending × 10^d tried at
 every check, `bending_candidates`; offsets in decades joined by +, m for minus, e.g. bendtry_1+m1; @M sets
 `bending_margin`, e.g. bendtry_1+m1@0); outdrag_K (with --output-edge: the fine output's drape with a velocity
-drag of K per s, `output_drape_damping`, e.g. outdrag_4, the simulator's own; the truths keep the default's).
+drag of K per s, `output_drape_damping`, e.g. outdrag_4, the simulator's own; the truths keep the default's);
+fitbend_D (the bending searched before the measurement fit, `measurement_fit_bending`: steps in decades joined
+by +, e.g. fitbend_1+0.5+0.25, the default; fitbend_none: no search, the fit under the default bending).
 
 The floor: each case's truth.chamfer_truth_cm is the truth's own drape against the scan (the scan's
 noise, resampling and holes; SyntheticCase.truth_chamfer_cm), so each variant's chamfer_ratio_floor
@@ -65,7 +67,7 @@ VARIANTS = ("full", "no_cage", "no_seam", "no_curvature")
 # and with another weight σ of the interior term
 EXTRA_VARIANTS = ("euclidean", "no_cage_euclidean", "unguided", "no_measurement_fit", "fixed_masses", "stretch", "bending_step_1",
                   "robust_boundary", "unsized", "interior_K", "to_surface", "to_points",
-                  "guided_K", "bendtry_D", "outdrag_K")   # interior_K: σ = K per m², e.g. interior_1; guided_K: κ_g = K per s² (K+L+…: each in turn)
+                  "guided_K", "bendtry_D", "outdrag_K", "fitbend_D")   # interior_K: σ = K per m², e.g. interior_1; guided_K: κ_g = K per s² (K+L+…: each in turn)
 
 
 def corner_edge_lengths(g, corners_from=None) -> list:
@@ -155,6 +157,14 @@ def options_for(variant, iterations, output_edge=0.0, friction=None, contact_nor
             raise ValueError(f"variant {variant!r}: bendtry_D needs offsets in decades joined by +, "
                              "e.g. bendtry_1+m1 (m: minus), optionally @margin, e.g. bendtry_1+m1@0") from None
         return o.with_(bending_candidates=offsets, bending_margin=margin)
+    if variant.startswith("fitbend_"):   # the bending search before the measurement fit: steps in decades, e.g. fitbend_1+0.5
+        spec = variant[len("fitbend_"):]
+        try:
+            steps = [] if spec == "none" else [float(d) for d in spec.split("+")]
+        except ValueError:
+            raise ValueError(f"variant {variant!r}: fitbend_D needs steps in decades joined by +, e.g. "
+                             "fitbend_1+0.5+0.25, or fitbend_none") from None
+        return o.with_(measurement_fit_bending=steps)
     if variant.startswith("outdrag_"):   # the fine output drape's velocity drag (1/s), set to the number
         try:
             drag = float(variant[len("outdrag_"):])
@@ -205,6 +215,7 @@ def run_case(case, variant, iterations, output_edge=0.0, friction=None, contact_
         "bending_candidates_kept": m.get("bending_candidates_kept"),
         "output_drape": m.get("output_drape"),
         "measurement_fit": m.get("measurement_fit"),
+        "measurement_fit_bending": m.get("measurement_fit_bending"),
         "template_sizing": m.get("template_sizing"),
     }
 

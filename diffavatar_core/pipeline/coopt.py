@@ -57,6 +57,7 @@ class CoOptResult:
     stop_reason: str = ""        # stopped 'invalid_start': why the stage's start did not re-drape
     initial_kept: int = 0        # re-drapes from the template's initial drape (try_initial) that became the warm start
     bending_kept: int = 0        # bending candidates (try_bending) that became the iterate and its warm start
+    bending_search: dict | None = None  # the bending searched before the measurement fit (search_bending), or None
 
 
 def seam_mismatch_pct(g, rest) -> float:
@@ -349,7 +350,7 @@ class CoOptObjective:
             kept |= k
         return kept
 
-    def try_bending(self, params) -> tuple[dict, bool]:
+    def try_bending(self, params, offsets=None) -> tuple[dict, bool]:
         """A global step in the bending (N·m) the gradient does not take: L-BFGS moves log10 k_b by
         fractions of a decade, and a stiffer or softer fabric lands in other folds, so φ is not
         smooth over decades. For each offset d (decades) of opts.bending_candidates the current
@@ -361,8 +362,8 @@ class CoOptObjective:
         BENDING_RANGE are not tried. Returns (the parameters, True when a candidate was kept);
         (params, False) with the bending fixed or no offsets. φ of a kept candidate is evaluated
         at its own equilibrium (last_bending); the cloth is left at the returned parameters and
-        warm start."""
-        offsets = self.opts.bending_candidates
+        warm start. offsets: decades, default opts.bending_candidates."""
+        offsets = self.opts.bending_candidates if offsets is None else tuple(offsets)
         if not offsets or "log_bend" not in params:
             return params, False
         x_keep = np.array(self.x_warm)
@@ -396,6 +397,29 @@ class CoOptObjective:
         self.last_bending = v_best if best is not params else None
         return best, best is not params
 
+    def search_bending(self, params, steps, cancelled=lambda: False) -> tuple[dict, dict]:
+        """A coarse-to-fine search of log10 k_b: for each d of `steps` (decades, > 0) in turn,
+        try_bending with the offsets (d, −d) from the bending the last one kept — so (1, 0.5, 0.25)
+        can end anywhere within ±1.75 decades of the start, on a 0.25-decade grid. Each kept step
+        beats the current φ by opts.bending_margin. Returns (params, report): report's
+        'bending_Nm_start' / 'bending_Nm' (the first group's, N·m), 'steps_decades', 'kept' (per
+        step), 'value_start' / 'value' (φ; value_start None when φ is not evaluable there)."""
+        steps = tuple(float(d) for d in steps)
+        start = float(10.0 ** np.asarray(params["log_bend"]).reshape(-1)[0])
+        v0 = self._value_or_inf(params)
+        value, kept = v0, []
+        for d in steps:
+            if cancelled() or not np.isfinite(value):
+                break
+            params, k = self.try_bending(params, (d, -d))
+            kept.append(bool(k))
+            if k:
+                value = self.last_bending
+        return params, {"steps_decades": list(steps), "kept": kept, "bending_Nm_start": start,
+                        "bending_Nm": float(10.0 ** np.asarray(params["log_bend"]).reshape(-1)[0]),
+                        "value_start": float(v0) if np.isfinite(v0) else None,
+                        "value": float(value) if np.isfinite(value) else None}
+
     def commit(self) -> None:
         """The last evaluated point became the optimizer's current iterate: later re-drapes start
         from (and are anchored to) its drape. Rejected trials never become warm starts — one may
@@ -423,14 +447,21 @@ def co_optimize(cloth, garment, scan_points, scan_loops: dict, opts: RecoverOpti
     opts.iterations accepted steps at most); the last iterate is re-draped — and, with a scan
     mesh and opts.guided_stiffness, also guided toward the scan, the lower-φ equilibrium kept —
     and returned. measurement_map (a measurement_fit.MeasurementMap of the template's cage):
-    first the template's measurements are fitted (opts.measurement_fit_iterations steps at most,
+    first the bending is searched at the template (opts.measurement_fit_bending, search_bending),
+    then the template's measurements are fitted (opts.measurement_fit_iterations steps at most,
     the rest held) and the handles start on the fitted outline; its iterations come first in the
     history, marked stage 'measurements'."""
     obj = CoOptObjective(cloth, garment, scan_points, scan_loops, opts, cage, body_model, body_params, cancel,
                          body_points, scan_mesh)
     params = obj.initial_params()
     history, fit, base, stop_reason, initial_used, bending_used = [], None, 0, "", [], []
+    searched = None
     if opts.iterations and opts.measurement_fit_iterations and measurement_map is not None:
+        if opts.measurement_fit_bending and "log_bend" in params and not cancelled():
+            # the material first: fitted under the default bending, a skirt whose fabric is 1.2
+            # decades stiffer hangs in other folds, and φ there prefers it 2.4 cm short (the sample,
+            # stop 48); the fit then holds the bending this search found
+            params, searched = obj.search_bending(params, opts.measurement_fit_bending, cancelled)
         def report_fit(h):
             history.append({**h, "stage": "measurements"})
             if on_iteration:
@@ -540,4 +571,5 @@ def co_optimize(cloth, garment, scan_points, scan_loops: dict, opts: RecoverOpti
         cloth.reset(obj.x_warm)
     return CoOptResult(rest, bend, bp if obj.use_body else body_params, bv, np.array(cloth.x), history, it, rej,
                        stopped, kept, gkept, fit, np.asarray(cloth.control.stretch_compliance).reshape(-1, 3).copy(),
-                       stop_reason, initial_kept=int(sum(initial_used)), bending_kept=int(sum(bending_used)))
+                       stop_reason, initial_kept=int(sum(initial_used)), bending_kept=int(sum(bending_used)),
+                       bending_search=searched)

@@ -73,6 +73,7 @@ class RecoverOptions:
     boundary_scale: float = 0.0
     fresh_every: int = 5
     measurement_fit_iterations: int = 10
+    measurement_fit_bending: tuple = (1.0, 0.5, 0.25)   # decades: the bending searched before the fit (CoOptObjective.search_bending); () none
     template_sizing: bool = True
     masses_follow_rest: bool = True
     guided_stiffness: tuple = (1.0e4, 1.0e6)   # 1/s², each in turn (CoOptObjective.try_guided); a number k is (k,), 0 is ()
@@ -122,6 +123,12 @@ class RecoverOptions:
                for v in seq):
             bad("bending_candidates", "must be a list of non-zero offsets in decades, each within ±3")
         object.__setattr__(self, "bending_candidates", tuple(float(v) for v in seq))
+        fb = self.measurement_fit_bending   # stored as a tuple of search steps (decades); a number d is (d,)
+        seq = tuple(fb) if isinstance(fb, (list, tuple)) else (fb,)
+        if any(isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or not 0 < v <= 3
+               for v in seq):
+            bad("measurement_fit_bending", "must be a list of search steps in decades, each in (0, 3]")
+        object.__setattr__(self, "measurement_fit_bending", tuple(float(v) for v in seq))
         m = self.bending_margin
         if isinstance(m, bool) or not isinstance(m, (int, float)) or not 0 <= m < 1:
             bad("bending_margin", "must be a fraction in [0, 1)")

@@ -514,6 +514,7 @@ def _recover(scan, opts: RecoverOptions, ctl: "_Control", body_model, t0: float)
         "guided_drapes_kept": co.guided_kept, "initial_drapes_kept": co.initial_kept,
         "bending_candidates_kept": co.bending_kept,
         "measurement_fit": co.measurement_fit.to_json() if co.measurement_fit is not None else None,
+        "measurement_fit_bending": co.bending_search,
         "optimized_vertices": int(len(g.rest)), "output_vertices": int(len(rest_out)),
         "output_drape": output_drape,
     }

@@ -205,6 +205,44 @@ def test_try_bending_keeps_the_lower_loss_candidate_with_its_own_equilibrium(ski
     c.reset(x0)
 
 
+def test_search_bending_steps_coarse_to_fine_toward_the_scans_fabric(skirts):
+    """search_bending (before the measurement fit) from the soft skirt (5e-6 N·m) against the folds
+    of the same pattern at 1e-3 N·m (2.3 decades stiffer): each step d tries ×10^±d from where the
+    last one left the bending, so it ends on the start's grid of the steps (here 0.5 decade) within
+    their sum, nearer the truth; every kept step beats the current φ by the margin, and what is
+    reported is φ at the returned parameters' own equilibrium. No steps: nothing changes."""
+    g, c, S = skirts
+    x0 = np.array(c.x)
+    loops = {k: S[v] for k, v in g.boundaries.items()}
+    opts = RecoverOptions.from_config(residual_tol=1e-8, samples=200)
+    obj = CoOptObjective(c, g, S, loops, opts, cage=build_cage(g), scan_mesh=(S, g.faces))
+    theta = obj.initial_params()
+    v0 = obj(theta)[0]
+    obj.commit()
+    same, report = obj.search_bending(theta, ())
+    # (φ re-evaluated from its own equilibrium: the anchors move to it, ~1% — try_bending's margin)
+    assert same is theta and report["kept"] == [] and report["value"] == report["value_start"] == pytest.approx(v0, rel=0.02)
+    steps = (1.0, 0.5)
+    best, report = obj.search_bending(theta, steps)
+    moved = float(best["log_bend"][0] - theta["log_bend"][0])
+    assert report["steps_decades"] == list(steps) and len(report["kept"]) == 2 and any(report["kept"])
+    assert abs(moved / 0.5 - round(moved / 0.5)) < 1e-9 and abs(moved) <= sum(steps) + 1e-12
+    assert abs(np.log10(report["bending_Nm"]) - 3.0 * -1) < abs(np.log10(5e-6) + 3.0), report   # nearer 1e-3
+    assert report["bending_Nm_start"] == pytest.approx(5e-6) and report["bending_Nm"] == pytest.approx(10.0 ** best["log_bend"][0])
+    assert report["value"] < (1 - opts.bending_margin) * report["value_start"]
+    np.testing.assert_array_equal(best["handles"], theta["handles"])
+    # from the kept drape, its own equilibrium (measured 1.2e-6 apart: the re-drape's anchors move to it)
+    assert obj(best)[0] == pytest.approx(report["value"], rel=1e-5), report
+    c.set_control(bend_stiffness=np.full(len(np.asarray(c.control.bend_stiffness)), 5e-6))
+    c.reset(x0)
+
+
+@pytest.mark.parametrize("value", [[0.0], [-0.5], [float("nan")], [4.0], [True], "one"])
+def test_measurement_fit_bending_is_validated(value):
+    with pytest.raises(ValueError, match="measurement_fit_bending"):
+        RecoverOptions.from_config(measurement_fit_bending=value)
+
+
 def test_bending_candidates_outside_the_range_are_not_tried(skirts):
     """From 5e-6 N·m an offset of −3 decades lands at 5e-9 N·m, below BENDING_RANGE: it is not
     tried (nothing kept, the warm start untouched)."""
