@@ -90,7 +90,7 @@ class MeasurementMap:
 @dataclass
 class MeasurementFitResult:
     names: tuple
-    values0: np.ndarray          # (M,) m, the template's measurements
+    values0: np.ndarray          # (M,) m, the template's measurements (the fit's start)
     values: np.ndarray           # (M,) m, fitted (the last accepted L-BFGS iterate; values0 if none)
     handles: np.ndarray          # (H, 2) m, ζ(values)
     value0: float                # φ at the template
@@ -98,11 +98,29 @@ class MeasurementFitResult:
     iterations: int
     stopped: str
     history: list = field(default_factory=list)
+    rounds: list = field(default_factory=list)   # per fit run: {'start_m', 'fitted_m', 'loss_start', 'loss_fitted', 'iterations'}
+
+    def __post_init__(self):
+        if not self.rounds:
+            self.rounds = [self._round()]
+
+    def _round(self) -> dict:
+        return {"start_m": [float(v) for v in self.values0], "fitted_m": [float(v) for v in self.values],
+                "loss_start": self.value0, "loss_fitted": self.value, "iterations": self.iterations}
+
+    def then(self, other: "MeasurementFitResult") -> "MeasurementFitResult":
+        """This fit followed by `other` (started from this one's values, e.g. at another bending):
+        the template's values and φ from this one, the fitted ones from `other`, the iterations and
+        rounds of both."""
+        return MeasurementFitResult(self.names, self.values0, other.values, other.handles, self.value0, other.value,
+                                    self.iterations + other.iterations, other.stopped, self.history + other.history,
+                                    self.rounds + other.rounds)
 
     def to_json(self) -> dict:
         return {"names": list(self.names), "template_m": [float(v) for v in self.values0],
                 "fitted_m": [float(v) for v in self.values], "loss_template": self.value0,
-                "loss_fitted": self.value, "iterations": self.iterations, "stopped": self.stopped}
+                "loss_fitted": self.value, "iterations": self.iterations, "stopped": self.stopped,
+                "rounds": self.rounds}
 
 
 def measurement_objective(obj, mmap: MeasurementMap, held: dict, values):
@@ -118,25 +136,27 @@ def measurement_objective(obj, mmap: MeasurementMap, held: dict, values):
 
 
 def fit_measurements(obj, mmap: MeasurementMap, params: dict, iterations: int, step: float,
-                     on_iteration=None, cancelled=lambda: False) -> MeasurementFitResult:
+                     on_iteration=None, cancelled=lambda: False, start=None) -> MeasurementFitResult:
     """Minimizes φ(ζ(m)) over the measurements m with L-BFGS (step: m per unit move), the other
-    parameter groups of `params` (a CoOptObjective parameter dict) held. obj: the
-    CoOptObjective, whose cloth is at the template's drape; accepted iterates become its warm
-    starts (commit), as in the co-optimization, and the cloth ends at the fitted pattern and its
-    drape. Raises ValueError when φ cannot be evaluated at the template's measurements."""
+    parameter groups of `params` (a CoOptObjective parameter dict) held, from the template's
+    measurements or `start` (m, mmap.names order). obj: the CoOptObjective, whose cloth is at
+    the start's drape; accepted iterates become its warm starts (commit), as in the
+    co-optimization, and the cloth ends at the fitted pattern and its drape. Raises ValueError
+    when φ cannot be evaluated at the start."""
     held = {g: v for g, v in params.items() if g != "handles"}
+    m0 = mmap.values0.copy() if start is None else np.asarray(start, float).reshape(-1).copy()
 
     def evaluate(p):
         return measurement_objective(obj, mmap, held, p["measurements"])
 
-    res = minimize_lbfgs(evaluate, {"measurements": mmap.values0.copy()}, {"measurements": step},
+    res = minimize_lbfgs(evaluate, {"measurements": m0}, {"measurements": step},
                          max_iterations=iterations, patience=obj.opts.patience, on_iteration=on_iteration,
                          cancelled=cancelled, on_accept=obj.commit, reevaluate=obj.opts.reevaluations,
                          reevaluate_tol=obj.opts.reevaluate_tol, on_revert=obj.revert)
     values = np.asarray(res.params["measurements"], float)   # the last accepted iterate: the warm start's
     if res.stopped != "cancelled":   # the cloth at the result, not at a last trial L-BFGS did not take
         obj.restore({"handles": mmap.parameters(mmap.handles(values), obj.cage is None), **held})
-    return MeasurementFitResult(mmap.names, mmap.values0.copy(), values, mmap.handles(values),
+    return MeasurementFitResult(mmap.names, m0.copy(), values, mmap.handles(values),
                                 float(res.history[0]["value"]), float(res.value), res.iterations, res.stopped,
                                 res.history)
 

@@ -440,7 +440,9 @@ def _recover(scan, opts: RecoverOptions, ctl: "_Control", body_model, t0: float)
     mmap = None   # the measurement fit: built-in templates (their outline is parametric)
     if opts.measurement_fit_iterations and template_name in FIT_MEASUREMENTS and remake is not None:
         mmap = MeasurementMap(template_name, lm, g, cage if cage is not None else build_cage(g), measurements=sizes)
-    n_total = opts.iterations + (opts.measurement_fit_iterations if mmap is not None and opts.iterations else 0)
+    # at most: the measurement fit, again after a bending search that moved, then the co-optimization
+    n_fit = opts.measurement_fit_iterations * (2 if opts.measurement_fit_bending else 1) + (1 if opts.measurement_fit_bending else 0)
+    n_total = opts.iterations + (n_fit if mmap is not None and opts.iterations else 0)
     ctl.report("optimize", 0, n_total)
 
     def on_iteration(h):

@@ -124,6 +124,34 @@ def test_fit_recovers_a_known_length(skirt_problem, skirt_true_length):
     assert np.allclose(np.asarray(cloth.control.rest), cage.rest(res.handles))   # the cloth: the last iterate
 
 
+def test_a_fit_started_elsewhere_continues_from_there(skirt_problem, skirt_true_length):
+    """fit_measurements(start=m): the fit's first point is m (what the co-optimization does after
+    the bending search: the measurements fitted again from the first fit's); `then` joins the
+    two runs: the template's values and φ from the first, the fitted ones from the second, both
+    rounds and their iterations."""
+    model, p, g, cloth, pts, loops = skirt_problem
+    cage = build_cage(g)
+    mm = MeasurementMap("skirt", model.landmarks(p), g, cage)
+    opts = RecoverOptions.from_config(residual_tol=1e-8, samples=500, bending="fixed", optimize_body=False)
+    obj = CoOptObjective(cloth, g, pts, loops, opts, cage=cage)
+    first = fit_measurements(obj, mm, obj.initial_params(), 3, 0.01)
+    assert first.iterations >= 1
+    seen = []
+    again = fit_measurements(obj, mm, obj.initial_params(), 3, 0.01, start=first.values, on_iteration=seen.append)
+    np.testing.assert_array_equal(again.values0, first.values)
+    # the same point re-draped from its own equilibrium (the anchors move to it: ~1%)
+    assert seen[0]["value"] == again.value0 == pytest.approx(first.value, rel=0.02)
+    assert again.value <= again.value0
+    both = first.then(again)
+    np.testing.assert_array_equal(both.values0, first.values0)
+    np.testing.assert_array_equal(both.values, again.values)
+    assert both.value0 == first.value0 and both.value == again.value
+    assert both.iterations == first.iterations + again.iterations and len(both.history) == len(first.history) + len(again.history)
+    j = both.to_json()
+    assert [r["start_m"] for r in j["rounds"]] == [list(first.values0), list(first.values)]
+    assert j["rounds"][1]["fitted_m"] == j["fitted_m"] and abs(j["fitted_m"][0] - skirt_true_length) < 0.01
+
+
 def test_bad_inputs_name_the_problem():
     g = make_template("skirt", edge_length=0.07)
     cage = build_cage(g)

@@ -174,19 +174,26 @@ def test_end_to_end_recovery_moves_toward_the_ground_truth(recovered):
     assert m["seam_length_mismatch_max_pct"] <= 5.0
     assert m["fresh_drapes_kept"] in (0, 1)   # 6 iterations, fresh_every 5: one fresh drape tried
     assert m["guided_drapes_kept"] in (0, 1, 2)   # and a guided one then and at the end
-    # the bending searched first, at the sized template (measurement_fit_bending): from the default
-    # 5e-6 N·m nearer the truth's 7.9e-5 (stop 48: 8.9e-5), at a lower φ
+    # the template's measurements fitted first, the bending held; then the bending searched at the
+    # fitted outline (measurement_fit_bending): from the default 5e-6 N·m nearer the truth's 7.9e-5
+    # (stop 48: 5e-5), at a lower φ; then the measurements fitted again from the first fit's, at it
     search = m["measurement_fit_bending"]
     log_truth = np.log10(truth["bend_stiffness_Nm"])
     assert abs(np.log10(search["bending_Nm"]) - log_truth) < abs(np.log10(search["bending_Nm_start"]) - log_truth), search
     assert search["value"] < search["value_start"]
-    # then the template's measurements, that bending held, each nearer the truth's (length −14%, hem +6%):
-    # the error left, as a fraction of the template's, over the unperturbed run and 5 under
-    # `--roundoff-seed` (stop 33) was 0.06-0.07 for the length and 0.01-0.50 for the hem width,
-    # which the skirt's folds can take up instead. Without the search the fit ran under the default
-    # bending, and on an AVX-512 machine (stop 47) the folds that left preferred a skirt 2.4 cm short
-    # (0.30 of the template's error)
     fit, sizing = m["measurement_fit"], m["template_sizing"]
+    rounds = fit["rounds"]
+    assert len(rounds) == 2 and rounds[1]["start_m"] == rounds[0]["fitted_m"] and rounds[1]["fitted_m"] == fit["fitted_m"]
+    assert rounds[1]["loss_start"] == pytest.approx(search["value"], rel=0.02)   # re-evaluated from its own drape
+    assert fit["iterations"] == sum(r_["iterations"] for r_ in rounds)
+    fitted = [h for h in r.loss_history if h.get("stage") == "measurements"]
+    assert len(fitted) == sum(r_["iterations"] + 1 for r_ in rounds)   # both fits' starts and steps, numbered on
+    assert [h["iteration"] for h in r.loss_history] == list(range(len(r.loss_history)))
+    # each measurement nearer the truth's (length −14%, hem +6%): the error left, as a fraction of
+    # the template's, over the unperturbed run and 5 under `--roundoff-seed` (stop 33) was
+    # 0.06-0.07 for the length and 0.01-0.50 for the hem width, which the skirt's folds can take up
+    # instead. With the fit alone, under the default bending, on an AVX-512 machine (stop 47) the
+    # folds that left preferred a skirt 2.4 cm short (0.30 of the template's error; 0.07 after the search)
     assert fit["names"] == ["length", "waist_ease", "hem_width"] and fit["loss_fitted"] < fit["loss_template"]
     for name, true in truth["measurements_m"].items():
         k = fit["names"].index(name)
