@@ -57,7 +57,7 @@ class CoOptResult:
     stop_reason: str = ""        # stopped 'invalid_start': why the stage's start did not re-drape
     initial_kept: int = 0        # re-drapes from the template's initial drape (try_initial) that became the warm start
     bending_kept: int = 0        # bending candidates (try_bending) that became the iterate and its warm start
-    bending_search: dict | None = None  # the bending searched before the measurement fit (search_bending), or None
+    bending_search: dict | None = None  # the bending searched after the first measurement fit (search_bending), or None
 
 
 def seam_mismatch_pct(g, rest) -> float:

@@ -73,7 +73,7 @@ class RecoverOptions:
     boundary_scale: float = 0.0
     fresh_every: int = 5
     measurement_fit_iterations: int = 10
-    measurement_fit_bending: tuple = (1.0, 0.5, 0.25)   # decades: the bending searched before the fit (CoOptObjective.search_bending); () none
+    measurement_fit_bending: tuple = (1.0, 0.5, 0.25)   # decades: the bending searched after the fit, which then runs again (CoOptObjective.search_bending); () none
     template_sizing: bool = True
     masses_follow_rest: bool = True
     guided_stiffness: tuple = (1.0e4, 1.0e6)   # 1/s², each in turn (CoOptObjective.try_guided); a number k is (k,), 0 is ()
