@@ -23,8 +23,9 @@ spring stiffness κ_g = K per s², e.g. guided_1e5); bendtry_D (bending candidat
 every check, `bending_candidates`; offsets in decades joined by +, m for minus, e.g. bendtry_1+m1; @M sets
 `bending_margin`, e.g. bendtry_1+m1@0); outdrag_K (with --output-edge: the fine output's drape with a velocity
 drag of K per s, `output_drape_damping`, e.g. outdrag_4, the simulator's own; the truths keep the default's);
-fitbend_D (the bending searched before the measurement fit, `measurement_fit_bending`: steps in decades joined
-by +, e.g. fitbend_1+0.5+0.25, the default; fitbend_none: no search, the fit under the default bending).
+fitbend_D (the bending searched after the measurement fit, which then runs again from its result,
+`measurement_fit_bending`: steps in decades joined by +, e.g. fitbend_1+0.5+0.25, the default; fitbend_none:
+no search, one fit under the default bending).
 
 The floor: each case's truth.chamfer_truth_cm is the truth's own drape against the scan (the scan's
 noise, resampling and holes; SyntheticCase.truth_chamfer_cm), so each variant's chamfer_ratio_floor
@@ -157,7 +158,7 @@ def options_for(variant, iterations, output_edge=0.0, friction=None, contact_nor
             raise ValueError(f"variant {variant!r}: bendtry_D needs offsets in decades joined by +, "
                              "e.g. bendtry_1+m1 (m: minus), optionally @margin, e.g. bendtry_1+m1@0") from None
         return o.with_(bending_candidates=offsets, bending_margin=margin)
-    if variant.startswith("fitbend_"):   # the bending search before the measurement fit: steps in decades, e.g. fitbend_1+0.5
+    if variant.startswith("fitbend_"):   # the bending search after the measurement fit: steps in decades, e.g. fitbend_1+0.5
         spec = variant[len("fitbend_"):]
         try:
             steps = [] if spec == "none" else [float(d) for d in spec.split("+")]

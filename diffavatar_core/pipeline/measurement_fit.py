@@ -93,7 +93,7 @@ class MeasurementFitResult:
     values0: np.ndarray          # (M,) m, the template's measurements (the fit's start)
     values: np.ndarray           # (M,) m, fitted (the last accepted L-BFGS iterate; values0 if none)
     handles: np.ndarray          # (H, 2) m, ζ(values)
-    value0: float                # φ at the template
+    value0: float                # φ at the template (the fit's start)
     value: float                 # φ at the fitted measurements
     iterations: int
     stopped: str
