@@ -206,7 +206,7 @@ def test_try_bending_keeps_the_lower_loss_candidate_with_its_own_equilibrium(ski
 
 
 def test_search_bending_steps_coarse_to_fine_toward_the_scans_fabric(skirts):
-    """search_bending (before the measurement fit) from the soft skirt (5e-6 N·m) against the folds
+    """search_bending (after the first measurement fit) from the soft skirt (5e-6 N·m) against the folds
     of the same pattern at 1e-3 N·m (2.3 decades stiffer): each step d tries ×10^±d from where the
     last one left the bending, so it ends on the start's grid of the steps (here 0.5 decade) within
     their sum, nearer the truth; every kept step beats the current φ by the margin, and what is

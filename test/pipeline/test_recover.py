@@ -461,6 +461,28 @@ def test_a_sized_template_that_does_not_drape_leaves_the_selected_one(monkeypatc
     assert np.isfinite(r.metrics["chamfer_final_cm"])
 
 
+def test_a_cancel_during_the_bending_search_ends_the_job_at_once(monkeypatch):
+    """A threading.Event set 0.3 s into the bending search after the measurement fit (re-drapes and
+    scan-guided drapes at other fabrics; about 10 s on the sample) ends the recovery within half a
+    second."""
+    from diffavatar_core.pipeline.coopt import CoOptObjective
+    ev, set_at = threading.Event(), []
+    real = CoOptObjective.search_bending
+
+    def fire():
+        set_at.append(time.monotonic())
+        ev.set()
+
+    def search(self, *args, **kwargs):
+        threading.Timer(0.3, fire).start()
+        return real(self, *args, **kwargs)
+    monkeypatch.setattr(CoOptObjective, "search_bending", search)
+    with pytest.raises(dc.Cancelled) as err:
+        recover(SAMPLE, {"units": "cm", "iterations": 2}, cancel=ev)
+    ended = time.monotonic()
+    assert set_at and ended - set_at[0] < 0.5, (ended - set_at[0], str(err.value))
+
+
 def test_cancel_stops_the_job():
     ev = threading.Event()
 
@@ -474,9 +496,8 @@ def test_cancel_stops_the_job():
 @pytest.mark.parametrize("stage", ["body", "drape", "optimize"])
 def test_a_cancel_event_ends_a_long_stage_at_once(stage):
     """A threading.Event set in the middle of the body fit (Python), of the initial drape (one
-    long C++ call that watches a CancelToken) or 0.3 s into the optimization (the bending search
-    before the measurement fit: drapes and scan-guided drapes) ends the recovery within half a
-    second."""
+    long C++ call that watches a CancelToken) or 0.3 s into the optimization (the measurement
+    fit's drapes) ends the recovery within half a second."""
     ev, set_at = threading.Event(), []
 
     def fire():
