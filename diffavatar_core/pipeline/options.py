@@ -117,18 +117,17 @@ class RecoverOptions:
                           or (v == 0 and len(seq) > 1) for v in seq):
             bad("guided_stiffness", "must be a number >= 0 (0: off) or a non-empty list of positive numbers")
         object.__setattr__(self, "guided_stiffness", tuple(float(v) for v in seq if v > 0))
-        bc = self.bending_candidates   # stored as a tuple of offsets (decades); a number d is (d,)
-        seq = tuple(bc) if isinstance(bc, (list, tuple)) else (bc,)
-        if any(isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v == 0 or abs(v) > 3
-               for v in seq):
-            bad("bending_candidates", "must be a list of non-zero offsets in decades, each within ±3")
-        object.__setattr__(self, "bending_candidates", tuple(float(v) for v in seq))
-        fb = self.measurement_fit_bending   # stored as a tuple of search steps (decades); a number d is (d,)
-        seq = tuple(fb) if isinstance(fb, (list, tuple)) else (fb,)
-        if any(isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or not 0 < v <= 3
-               for v in seq):
-            bad("measurement_fit_bending", "must be a list of search steps in decades, each in (0, 3]")
-        object.__setattr__(self, "measurement_fit_bending", tuple(float(v) for v in seq))
+        def decades(name, ok, why):   # stored as a tuple of decades; a number d is (d,)
+            v = getattr(self, name)
+            seq = tuple(v) if isinstance(v, (list, tuple)) else (v,)
+            if any(isinstance(d, bool) or not isinstance(d, (int, float)) or not math.isfinite(d) or not ok(d)
+                   for d in seq):
+                bad(name, why)
+            object.__setattr__(self, name, tuple(float(d) for d in seq))
+        decades("bending_candidates", lambda d: d != 0 and abs(d) <= 3,
+                "must be a list of non-zero offsets in decades, each within ±3")
+        decades("measurement_fit_bending", lambda d: 0 < d <= 3,
+                "must be a list of search steps in decades, each in (0, 3]")
         m = self.bending_margin
         if isinstance(m, bool) or not isinstance(m, (int, float)) or not 0 <= m < 1:
             bad("bending_margin", "must be a fraction in [0, 1)")
