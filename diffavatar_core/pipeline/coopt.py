@@ -114,6 +114,7 @@ class CoOptObjective:
         self.last_guided = None  # (φ warm, φ guided) of the last try_guided
         self.last_initial = None  # (φ warm, φ from the initial drape) of the last try_initial
         self.last_bending = None  # φ of the candidate the last try_bending kept (None: none kept)
+        self.last_bending_judged = []   # (k_b N·m, φ judged) of the last try_bending: the current's, then the candidates'
         bp = np.zeros((0, 3)) if body_points is None else np.asarray(body_points, np.float64).reshape(-1, 3)
         if len(bp) > opts.samples:   # a fixed, reproducible subset
             bp = bp[np.random.default_rng(0).choice(len(bp), opts.samples, replace=False)]
@@ -350,47 +351,76 @@ class CoOptObjective:
             kept |= k
         return kept
 
+    def _fresh_value(self, params) -> float:
+        """φ at `params` on a fresh drape (fresh_drape_at), re-evaluated from that equilibrium;
+        ∞ when there is none. Leaves the drape in x_last (and the cloth); x_warm is set to it."""
+        rest, bend, bp = self.unpack(params)
+        try:
+            self.fresh_drape_at(rest, bend, self.model.pose(bp) if self.use_body else None, self.stretch(params))
+        except ValueError:
+            return np.inf
+        self.x_warm = np.array(self.cloth.x)
+        return self._value_or_inf(params)
+
     def try_bending(self, params, offsets=None) -> tuple[dict, bool]:
         """A global step in the bending (N·m) the gradient does not take: L-BFGS moves log10 k_b by
         fractions of a decade, and a stiffer or softer fabric lands in other folds, so φ is not
         smooth over decades. For each offset d (decades) of opts.bending_candidates the current
         drape is re-draped at k_b·10^d, then scan-guided (each of opts.guided_stiffness in turn, as
-        try_guided); the lowest-φ (parameters, drape) of these becomes the iterate and its warm
-        start when its φ is below (1 − opts.bending_margin) × φ of `params` at the warm start:
-        re-drapes of one θ differ by about a percent (the fold state), and a material change must
-        explain the scan better than that (BENCHMARKS.md stop 43). Candidates outside
+        try_guided). The fabric is judged on drapes of the same kinds for the current bending and
+        each candidate (opts.bending_compare 'unguided': the warm re-drape and a fresh drape,
+        neither pulled toward the scan — a soft enough cloth stays wherever a guided drape leaves
+        it, so guided φ is flat and low over soft fabrics and chooses folds, not the material;
+        BENCHMARKS.md stop 49; 'guided', before stop 49: the candidates' guided drapes count too,
+        against the current's warm drape alone). The candidate judged lowest becomes the iterate
+        when that is below (1 − opts.bending_margin) × the current's: re-drapes of one θ differ by
+        about a percent (the fold state), and a material change must explain the scan better than
+        that (stop 43); its warm start is the lowest-φ of its drapes. Candidates outside
         BENDING_RANGE are not tried. Returns (the parameters, True when a candidate was kept);
         (params, False) with the bending fixed or no offsets. φ of a kept candidate is evaluated
         at its own equilibrium (last_bending); the cloth is left at the returned parameters and
-        warm start. offsets: decades, default opts.bending_candidates."""
+        warm start. offsets: decades, default opts.bending_candidates. last_bending_judged: (k_b N·m,
+        φ judged) of the current bending, then of each candidate evaluated."""
         offsets = self.opts.bending_candidates if offsets is None else tuple(offsets)
+        self.last_bending_judged = []
         if not offsets or "log_bend" not in params:
             return params, False
+        unguided = self.opts.bending_compare == "unguided"
         x_keep = np.array(self.x_warm)
-        v_best, best, x_best = self._value_or_inf(params), params, x_keep
-        if not np.isfinite(v_best):
+        v_cur = self._value_or_inf(params)
+        if not np.isfinite(v_cur):
             return params, False
-        v_best *= 1.0 - self.opts.bending_margin   # what a candidate has to beat
         lo, hi = np.log10(BENDING_RANGE[0]), np.log10(BENDING_RANGE[1])
-        for d in offsets:
-            cand = {**params, "log_bend": np.asarray(params["log_bend"], np.float64) + d}
-            if cand["log_bend"].min() < lo or cand["log_bend"].max() > hi:
-                continue
+        cands = [{**params, "log_bend": np.asarray(params["log_bend"], np.float64) + d} for d in offsets]
+        cands = [c for c in cands if lo <= c["log_bend"].min() and c["log_bend"].max() <= hi]
+        if cands and unguided:   # the current fabric's own fresh drape: the same kinds as the candidates'
+            v_cur = min(v_cur, self._fresh_value(params))
+        judge_best, best, v_best, x_best = v_cur * (1.0 - self.opts.bending_margin), params, None, x_keep
+        self.last_bending_judged = [(float(10.0 ** np.asarray(params["log_bend"]).reshape(-1)[0]), float(v_cur))]
+        for cand in cands:
             self.x_warm = x_keep.copy()
             v = self._value_or_inf(cand)        # re-draped at k_b·10^d from the current drape
             if not np.isfinite(v):
                 continue
-            if v < v_best:
-                v_best, best, x_best = v, cand, np.array(self.x_last)
+            drapes = [(v, np.array(self.x_last))]
             for kappa in (self.opts.guided_stiffness if self.scan_mesh is not None else ()):
                 try:
                     self._guide(kappa)
                 except ValueError:
                     break
                 self.x_warm = np.array(self.cloth.x)
-                v = self._value_or_inf(cand)
-                if v < v_best:
-                    v_best, best, x_best = v, cand, np.array(self.x_last)
+                drapes.append((self._value_or_inf(cand), np.array(self.x_last)))
+            judge = min(d[0] for d in drapes)
+            if unguided:
+                judge = v
+                v_fresh = self._fresh_value(cand)
+                if np.isfinite(v_fresh):
+                    drapes.append((v_fresh, np.array(self.x_last)))
+                    judge = min(judge, v_fresh)
+            self.last_bending_judged.append((float(10.0 ** cand["log_bend"].reshape(-1)[0]), float(judge)))
+            if judge < judge_best:
+                judge_best, best = judge, cand
+                v_best, x_best = min(drapes, key=lambda d: d[0])
         self.x_warm = x_best
         self.x_last = x_best
         self.restore(best)
@@ -403,19 +433,22 @@ class CoOptObjective:
         can end anywhere within ±1.75 decades of the start, on a 0.25-decade grid. Each kept step
         beats the current φ by opts.bending_margin. Returns (params, report): report's
         'bending_Nm_start' / 'bending_Nm' (the first group's, N·m), 'steps_decades', 'kept' (per
-        step), 'value_start' / 'value' (φ; value_start None when φ is not evaluable there)."""
+        step), 'judged' (per step, [k_b N·m, φ judged] of the current bending and the candidates:
+        try_bending's last_bending_judged), 'value_start' / 'value' (φ; value_start None when φ is
+        not evaluable there)."""
         steps = tuple(float(d) for d in steps)
         start = float(10.0 ** np.asarray(params["log_bend"]).reshape(-1)[0])
         v0 = self._value_or_inf(params)
-        value, kept = v0, []
+        value, kept, judged = v0, [], []
         for d in steps:
             if cancelled() or not np.isfinite(value):
                 break
             params, k = self.try_bending(params, (d, -d))
             kept.append(bool(k))
+            judged.append([list(j) for j in self.last_bending_judged])
             if k:
                 value = self.last_bending
-        return params, {"steps_decades": list(steps), "kept": kept, "bending_Nm_start": start,
+        return params, {"steps_decades": list(steps), "kept": kept, "judged": judged, "bending_Nm_start": start,
                         "bending_Nm": float(10.0 ** np.asarray(params["log_bend"]).reshape(-1)[0]),
                         "value_start": float(v0) if np.isfinite(v0) else None,
                         "value": float(value) if np.isfinite(value) else None}

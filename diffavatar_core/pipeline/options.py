@@ -14,6 +14,7 @@ OPTIMIZERS = ("lbfgs", "adam")
 BENDING = ("garment", "panel", "fixed")
 STRETCH = ("fixed", "garment")
 INTERIOR_TO = ("surface", "points")
+BENDING_COMPARE = ("unguided", "guided")   # unguided: warm re-drape and fresh drape, for the current and the candidates
 
 
 @dataclass(frozen=True)
@@ -80,6 +81,7 @@ class RecoverOptions:
     guided_capture: float = 0.03
     bending_candidates: tuple = (1.0, -1.0)   # decades: log10 offsets of the bending tried at every check (CoOptObjective.try_bending)
     bending_margin: float = 0.02     # a bending candidate is kept when φ is lower by more than this fraction
+    bending_compare: str = "unguided"   # the drapes a bending candidate is judged on (CoOptObjective.try_bending): BENDING_COMPARE
     length_tolerance_pct: float = 2.0
     length_tolerance_min: float = 0.01
     patience: int = 5
@@ -160,6 +162,8 @@ class RecoverOptions:
             bad("bending", f"must be one of {BENDING}")
         if self.stretch not in STRETCH:
             bad("stretch", f"must be one of {STRETCH}")
+        if self.bending_compare not in BENDING_COMPARE:
+            bad("bending_compare", f"must be one of {BENDING_COMPARE}")
         if self.interior_to not in INTERIOR_TO:
             bad("interior_to", f"must be one of {INTERIOR_TO}")
         if self.units not in ("m", "cm", "mm"):
