@@ -25,7 +25,8 @@ every check, `bending_candidates`; offsets in decades joined by +, m for minus, 
 drag of K per s, `output_drape_damping`, e.g. outdrag_4, the simulator's own; the truths keep the default's);
 fitbend_D (the bending searched after the measurement fit, which then runs again from its result,
 `measurement_fit_bending`: steps in decades joined by +, e.g. fitbend_1+0.5+0.25, the default; fitbend_none:
-no search, one fit under the default bending).
+no search, one fit under the default bending); bendcompare_M (the drapes bending candidates are judged on,
+`bending_compare`: bendcompare_guided, the candidates' scan-guided drapes too, the code before stop 49).
 
 The floor: each case's truth.chamfer_truth_cm is the truth's own drape against the scan (the scan's
 noise, resampling and holes; SyntheticCase.truth_chamfer_cm), so each variant's chamfer_ratio_floor
@@ -68,7 +69,7 @@ VARIANTS = ("full", "no_cage", "no_seam", "no_curvature")
 # and with another weight σ of the interior term
 EXTRA_VARIANTS = ("euclidean", "no_cage_euclidean", "unguided", "no_measurement_fit", "fixed_masses", "stretch", "bending_step_1",
                   "robust_boundary", "unsized", "interior_K", "to_surface", "to_points",
-                  "guided_K", "bendtry_D", "outdrag_K", "fitbend_D")   # interior_K: σ = K per m², e.g. interior_1; guided_K: κ_g = K per s² (K+L+…: each in turn)
+                  "guided_K", "bendtry_D", "outdrag_K", "fitbend_D", "bendcompare_M")   # interior_K: σ = K per m², e.g. interior_1; guided_K: κ_g = K per s² (K+L+…: each in turn)
 
 
 def corner_edge_lengths(g, corners_from=None) -> list:
@@ -166,6 +167,8 @@ def options_for(variant, iterations, output_edge=0.0, friction=None, contact_nor
             raise ValueError(f"variant {variant!r}: fitbend_D needs steps in decades joined by +, e.g. "
                              "fitbend_1+0.5+0.25, or fitbend_none") from None
         return o.with_(measurement_fit_bending=steps)
+    if variant.startswith("bendcompare_"):   # the drapes a bending candidate is judged on: unguided | guided
+        return o.with_(bending_compare=variant[len("bendcompare_"):])
     if variant.startswith("outdrag_"):   # the fine output drape's velocity drag (1/s), set to the number
         try:
             drag = float(variant[len("outdrag_"):])
