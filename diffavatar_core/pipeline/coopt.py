@@ -115,6 +115,7 @@ class CoOptObjective:
         self.last_initial = None  # (φ warm, φ from the initial drape) of the last try_initial
         self.last_bending = None  # φ of the candidate the last try_bending kept (None: none kept)
         self.last_bending_judged = []   # (k_b N·m, φ judged) of the last try_bending: the current's, then the candidates'
+        self._fresh_seen = {}    # params key -> (φ, drape) of recent fresh drapes (_fresh_value)
         bp = np.zeros((0, 3)) if body_points is None else np.asarray(body_points, np.float64).reshape(-1, 3)
         if len(bp) > opts.samples:   # a fixed, reproducible subset
             bp = bp[np.random.default_rng(0).choice(len(bp), opts.samples, replace=False)]
@@ -303,6 +304,8 @@ class CoOptObjective:
         stretch = self.stretch(params)
         v_warm, v_fresh, kept = self._try_candidate(params, lambda _: self.fresh_drape_at(rest, bend, bv, stretch))
         self.last_fresh = (v_warm, v_fresh)
+        if np.isfinite(v_fresh):   # x_last: the fresh drape φ was evaluated on (kept or not)
+            self._remember_fresh(_params_key(params), v_fresh, self.x_last)
         return kept
 
     def try_initial(self, params) -> bool:
@@ -353,14 +356,30 @@ class CoOptObjective:
 
     def _fresh_value(self, params) -> float:
         """φ at `params` on a fresh drape (fresh_drape_at), re-evaluated from that equilibrium;
-        ∞ when there is none. Leaves the drape in x_last (and the cloth); x_warm is set to it."""
+        ∞ when there is none. x_last and x_warm are set to that drape. A fresh drape depends on the
+        parameters alone, so the last few are remembered (with try_fresh's): a check's try_bending
+        judges the current bending on the fresh drape try_fresh has just made, and a search step
+        starts from the candidate the step before judged."""
+        key = _params_key(params)
+        if key in self._fresh_seen:
+            v, x = self._fresh_seen[key]
+            self.x_warm = self.x_last = x
+            return v
         rest, bend, bp = self.unpack(params)
         try:
             self.fresh_drape_at(rest, bend, self.model.pose(bp) if self.use_body else None, self.stretch(params))
         except ValueError:
             return np.inf
         self.x_warm = np.array(self.cloth.x)
-        return self._value_or_inf(params)
+        v = self._value_or_inf(params)
+        if np.isfinite(v):
+            self._remember_fresh(key, v, self.x_last)
+        return v
+
+    def _remember_fresh(self, key, value, x) -> None:
+        self._fresh_seen[key] = (float(value), np.array(x))
+        while len(self._fresh_seen) > 8:
+            self._fresh_seen.pop(next(iter(self._fresh_seen)))
 
     def try_bending(self, params, offsets=None) -> tuple[dict, bool]:
         """A global step in the bending (N·m) the gradient does not take: L-BFGS moves log10 k_b by
@@ -465,6 +484,11 @@ class CoOptObjective:
         the last reevaluations + 2 commits are kept: every commit of one line-search trial."""
         if self._undo:
             self.x_warm = self._undo.pop()
+
+
+def _params_key(params) -> tuple:
+    """A hashable, exact key of a parameter dict (its groups' float64 bytes)."""
+    return tuple((g, np.asarray(v, np.float64).tobytes()) for g, v in sorted(params.items()))
 
 
 class _EvaluationFailed(ValueError):

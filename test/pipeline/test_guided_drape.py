@@ -208,7 +208,7 @@ def test_try_bending_keeps_the_lower_loss_candidate_with_its_own_equilibrium(ski
 def test_try_bending_judges_the_fabric_on_the_same_unguided_drapes_for_all(skirts):
     """bending_compare 'unguided' (the default): the current bending and every candidate are judged
     on φ of their warm re-drape (from the current drape) and of a fresh drape, the lower of the two —
-    each judged value re-computed here independently — and a candidate is kept when its judged φ is
+    each judged value re-computed here independently (the fresh drapes made again, not remembered) — and a candidate is kept when its judged φ is
     below (1 − margin) × the current's; its scan-guided drapes only choose its folds. Against the
     stiff skirt's folds (1e-3 N·m) the 10× softer candidate's guided drape is lower than its judged
     φ (a soft cloth stays where the pull left it: the trap of t-shirt 101, BENCHMARKS.md stop 49); with
@@ -232,6 +232,7 @@ def test_try_bending_judges_the_fabric_on_the_same_unguided_drapes_for_all(skirt
         judged = list(obj.last_bending_judged)
         last = obj.last_bending
         cands = [theta] + [{**theta, "log_bend": theta["log_bend"] + d} for d in (-1, 1)]
+        obj._fresh_seen.clear()   # the fresh drapes made again, not the remembered ones
         assert [k for k, _ in judged] == pytest.approx([10.0 ** p["log_bend"][0] for p in cands], rel=1e-12)
         for i, (p, (_, j)) in enumerate(zip(cands, judged)):
             obj.x_warm = x_keep.copy()

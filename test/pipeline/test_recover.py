@@ -678,6 +678,29 @@ def test_try_fresh_keeps_the_lower_loss_warm_start(skirt_problem):
     assert np.array_equal(obj.x_warm, obj.x_last if used else x_before)
 
 
+def test_a_remembered_fresh_drape_is_the_one_made_again(skirt_problem):
+    """try_fresh's fresh drape is remembered for try_bending's judging (_fresh_value): φ and drape are
+    those a fresh drape made again gives, bit for bit (a fresh drape depends on the parameters alone),
+    and asking again drapes nothing."""
+    model, p, g, cloth, pts, loops = skirt_problem
+    obj = CoOptObjective(cloth, g, pts, loops, RecoverOptions.from_config(residual_tol=1e-8, samples=200),
+                         cage=build_cage(g))
+    theta = obj.initial_params()
+    theta["handles"] = theta["handles"] * 1.04
+    obj(theta)
+    obj.commit()
+    obj.try_fresh(theta)
+    v_fresh = obj.last_fresh[1]
+    made = []
+    real = obj.fresh_drape_at
+    obj.fresh_drape_at = lambda *a, **k: made.append(1) or real(*a, **k)
+    assert obj._fresh_value(theta) == v_fresh and made == []   # remembered
+    x_remembered = np.array(obj.x_last)
+    obj._fresh_seen.clear()
+    assert obj._fresh_value(theta) == v_fresh and made == [1]   # made again: the same
+    np.testing.assert_array_equal(obj.x_last, x_remembered)
+
+
 def test_try_initial_redrapes_from_the_template_drape(skirt_problem):
     """try_initial evaluates φ from the current warm start and from a re-drape of the same
     parameters that starts at the template's initial drape, and keeps the lower: the candidate does
