@@ -14,7 +14,7 @@ OPTIMIZERS = ("lbfgs", "adam")
 BENDING = ("garment", "panel", "fixed")
 STRETCH = ("fixed", "garment")
 INTERIOR_TO = ("surface", "points")
-BENDING_COMPARE = ("unguided", "guided")   # unguided: warm re-drape and fresh drape, for the current and the candidates
+BENDING_COMPARE = ("guided", "unguided", "asymmetric")   # CoOptObjective.try_bending
 
 
 @dataclass(frozen=True)
@@ -81,7 +81,7 @@ class RecoverOptions:
     guided_capture: float = 0.03
     bending_candidates: tuple = (1.0, -1.0)   # decades: log10 offsets of the bending tried at every check (CoOptObjective.try_bending)
     bending_margin: float = 0.02     # a bending candidate is kept when φ is lower by more than this fraction
-    bending_compare: str = "unguided"   # the drapes a bending candidate is judged on (CoOptObjective.try_bending): BENDING_COMPARE
+    bending_compare: str = "guided"   # the drapes a bending candidate is judged on (CoOptObjective.try_bending): BENDING_COMPARE
     length_tolerance_pct: float = 2.0
     length_tolerance_min: float = 0.01
     patience: int = 5
