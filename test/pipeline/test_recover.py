@@ -660,9 +660,8 @@ def test_a_fresh_drape_does_not_depend_on_the_previous_state(skirt_problem):
     assert cloth.solver.residual(cloth.x, np.array([0, -9.81, 0.0])) <= 1e-8
 
 
-def test_try_fresh_keeps_the_lower_loss_warm_start(skirt_problem):
-    """try_fresh evaluates φ from the current warm start and from a fresh drape of the same
-    parameters and keeps the lower as the next warm start: the next evaluation starts from it."""
+def _at_a_larger_skirt(skirt_problem):
+    """An objective whose warm start is the drape of the skirt 4% larger than the template, and those parameters."""
     model, p, g, cloth, pts, loops = skirt_problem
     obj = CoOptObjective(cloth, g, pts, loops, RecoverOptions.from_config(residual_tol=1e-8, samples=200),
                          cage=build_cage(g))
@@ -670,6 +669,13 @@ def test_try_fresh_keeps_the_lower_loss_warm_start(skirt_problem):
     theta["handles"] = theta["handles"] * 1.04
     obj(theta)
     obj.commit()
+    return obj, theta
+
+
+def test_try_fresh_keeps_the_lower_loss_warm_start(skirt_problem):
+    """try_fresh evaluates φ from the current warm start and from a fresh drape of the same
+    parameters and keeps the lower as the next warm start: the next evaluation starts from it."""
+    obj, theta = _at_a_larger_skirt(skirt_problem)
     x_before = np.array(obj.x_warm)
     used = obj.try_fresh(theta)
     v_warm, v_fresh = obj.last_fresh
@@ -682,13 +688,7 @@ def test_a_remembered_fresh_drape_is_the_one_made_again(skirt_problem):
     """try_fresh's fresh drape is remembered for try_bending's judging (_fresh_value): φ and drape are
     those a fresh drape made again gives, bit for bit (a fresh drape depends on the parameters alone),
     and asking again drapes nothing."""
-    model, p, g, cloth, pts, loops = skirt_problem
-    obj = CoOptObjective(cloth, g, pts, loops, RecoverOptions.from_config(residual_tol=1e-8, samples=200),
-                         cage=build_cage(g))
-    theta = obj.initial_params()
-    theta["handles"] = theta["handles"] * 1.04
-    obj(theta)
-    obj.commit()
+    obj, theta = _at_a_larger_skirt(skirt_problem)
     obj.try_fresh(theta)
     v_fresh = obj.last_fresh[1]
     made = []
