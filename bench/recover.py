@@ -27,7 +27,8 @@ fitbend_D (the bending searched after the measurement fit, which then runs again
 `measurement_fit_bending`: steps in decades joined by +, e.g. fitbend_1+0.5+0.25, the default; fitbend_none:
 no search, one fit under the default bending); bendcompare_M (the drapes bending candidates are judged on,
 `bending_compare`: bendcompare_unguided, the warm re-drape and a fresh drape for the current bending and the
-candidates alike — stop 49, not the default).
+candidates alike; bendcompare_asymmetric, softer candidates so, stiffer ones on their guided drapes too — stop
+49, neither the default).
 
 The floor: each case's truth.chamfer_truth_cm is the truth's own drape against the scan (the scan's
 noise, resampling and holes; SyntheticCase.truth_chamfer_cm), so each variant's chamfer_ratio_floor
@@ -168,7 +169,7 @@ def options_for(variant, iterations, output_edge=0.0, friction=None, contact_nor
             raise ValueError(f"variant {variant!r}: fitbend_D needs steps in decades joined by +, e.g. "
                              "fitbend_1+0.5+0.25, or fitbend_none") from None
         return o.with_(measurement_fit_bending=steps)
-    if variant.startswith("bendcompare_"):   # the drapes a bending candidate is judged on: guided | unguided
+    if variant.startswith("bendcompare_"):   # the drapes a bending candidate is judged on: guided | unguided | asymmetric
         return o.with_(bending_compare=variant[len("bendcompare_"):])
     if variant.startswith("outdrag_"):   # the fine output drape's velocity drag (1/s), set to the number
         try:

@@ -363,7 +363,7 @@ class CoOptObjective:
         key = _params_key(params)
         if key in self._fresh_seen:
             v, x = self._fresh_seen[key]
-            self.x_warm = self.x_last = x
+            self.x_warm, self.x_last = x.copy(), x.copy()   # the remembered drape stays as it was made
             return v
         rest, bend, bp = self.unpack(params)
         try:
