@@ -268,6 +268,11 @@ class CoOptObjective:
         if not r.converged:
             raise ValueError(f"fresh drape did not converge: {r.message}")
 
+    def fresh_drape(self, params) -> None:
+        """fresh_drape_at with the controls of `params` (ValueError when it does not converge)."""
+        rest, bend, bp = self.unpack(params)
+        self.fresh_drape_at(rest, bend, self.model.pose(bp) if self.use_body else None, self.stretch(params))
+
     def _value_or_inf(self, params) -> float:
         try:
             v = self.value(params)
@@ -299,10 +304,7 @@ class CoOptObjective:
         lower becomes the warm start (True: the fresh one). Warm-started drapes carry the
         template's folds along as the pattern changes; a fresh drape lets the cloth find the folds
         of the current pattern. An evaluation that fails counts as φ = ∞."""
-        rest, bend, bp = self.unpack(params)
-        bv = self.model.pose(bp) if self.use_body else None
-        stretch = self.stretch(params)
-        v_warm, v_fresh, kept = self._try_candidate(params, lambda _: self.fresh_drape_at(rest, bend, bv, stretch))
+        v_warm, v_fresh, kept = self._try_candidate(params, lambda _: self.fresh_drape(params))
         self.last_fresh = (v_warm, v_fresh)
         if np.isfinite(v_fresh):   # x_last: the fresh drape φ was evaluated on (kept or not)
             self._remember_fresh(_params_key(params), v_fresh, self.x_last)
@@ -365,9 +367,8 @@ class CoOptObjective:
             v, x = self._fresh_seen[key]
             self.x_warm, self.x_last = x.copy(), x.copy()   # the remembered drape stays as it was made
             return v
-        rest, bend, bp = self.unpack(params)
         try:
-            self.fresh_drape_at(rest, bend, self.model.pose(bp) if self.use_body else None, self.stretch(params))
+            self.fresh_drape(params)
         except ValueError:
             return np.inf
         self.x_warm = np.array(self.cloth.x)
