@@ -197,6 +197,7 @@ class Cloth:
             raise ValueError(f"min_constraints: expected >= 0, got {min_constraints}")
         p.min_constraints = int(min_constraints)
         self.solver.set_sweep_plan(p)
+        self._sweep_plan_args = (p.lanes, p.min_constraints)   # what clone() rebuilds
 
     def set_control(self, rest=None, stretch_compliance=None, bend_stiffness=None, body_vertices=None):
         """Changes the optimized parameters (Control). The lumped masses are the Model's, from
@@ -214,6 +215,25 @@ class Cloth:
         if body_vertices is not None:
             c.body_vertices = _validate.points("body_vertices", body_vertices, allow_empty=True)
         self.solver.set_control(c)
+
+    def clone(self) -> "Cloth":
+        """An independent Cloth: this one's Model, Control and sweep plan in a solver of its own (the
+        C++ objects copied, the body's BVH rebuilt, nothing shared), at this state's positions (m) and
+        velocities (m/s), with the last drape's simulation parameters. The two may run at once in
+        two threads (their C++ calls release the GIL). Not copied: the contact set and anchors a
+        solver holds between calls — the next drape, refine or reequilibrate of the clone detects
+        and sets its own, as they do on this cloth (keep_anchor / keep_contacts reuse them)."""
+        c = object.__new__(Cloth)
+        c.materials, c.body_faces = list(self.materials), self.body_faces
+        c.solver = _core.XpbdSolver(self.solver.model, self.solver.control)
+        c.solver.contact_query_cache = self.solver.contact_query_cache
+        if hasattr(self, "_sweep_plan_args"):
+            c.set_sweep_plan(*self._sweep_plan_args)
+        if hasattr(self, "params"):
+            c.params = self.params   # replaced by every drape, never changed in place
+        c.state = c.solver.make_state(np.array(self.x))
+        c.state.v = np.array(self.state.v)
+        return c
 
     @property
     def x(self) -> np.ndarray:
