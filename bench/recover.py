@@ -28,7 +28,9 @@ fitbend_D (the bending searched after the measurement fit, which then runs again
 no search, one fit under the default bending); bendcompare_M (the drapes bending candidates are judged on,
 `bending_compare`: bendcompare_unguided, the warm re-drape and a fresh drape for the current bending and the
 candidates alike; bendcompare_asymmetric, softer candidates so, stiffer ones on their guided drapes too — stop
-49, neither the default).
+49, neither the default); workers_N (the bending candidates of a check draped N at once, `candidate_workers`; the
+default 0 is one per CPU: workers_1, one after the other, is the reference of its times — the results are the same
+bit for bit).
 
 The floor: each case's truth.chamfer_truth_cm is the truth's own drape against the scan (the scan's
 noise, resampling and holes; SyntheticCase.truth_chamfer_cm), so each variant's chamfer_ratio_floor
@@ -71,7 +73,7 @@ VARIANTS = ("full", "no_cage", "no_seam", "no_curvature")
 # and with another weight σ of the interior term
 EXTRA_VARIANTS = ("euclidean", "no_cage_euclidean", "unguided", "no_measurement_fit", "fixed_masses", "stretch", "bending_step_1",
                   "robust_boundary", "unsized", "interior_K", "to_surface", "to_points",
-                  "guided_K", "bendtry_D", "outdrag_K", "fitbend_D", "bendcompare_M")   # interior_K: σ = K per m², e.g. interior_1; guided_K: κ_g = K per s² (K+L+…: each in turn)
+                  "guided_K", "bendtry_D", "outdrag_K", "fitbend_D", "bendcompare_M", "workers_N")   # interior_K: σ = K per m², e.g. interior_1; guided_K: κ_g = K per s² (K+L+…: each in turn)
 
 
 def corner_edge_lengths(g, corners_from=None) -> list:
@@ -171,6 +173,11 @@ def options_for(variant, iterations, output_edge=0.0, friction=None, contact_nor
         return o.with_(measurement_fit_bending=steps)
     if variant.startswith("bendcompare_"):   # the drapes a bending candidate is judged on: guided | unguided | asymmetric
         return o.with_(bending_compare=variant[len("bendcompare_"):])
+    if variant.startswith("workers_"):   # bending candidates draped at once (candidate_workers): the same results, other times
+        try:
+            return o.with_(candidate_workers=int(variant[len("workers_"):]))
+        except ValueError:
+            raise ValueError(f"variant {variant!r}: workers_N needs a whole number N >= 0, e.g. workers_1") from None
     if variant.startswith("outdrag_"):   # the fine output drape's velocity drag (1/s), set to the number
         try:
             drag = float(variant[len("outdrag_"):])

@@ -20,6 +20,7 @@ or a non-finite value is rejected and the step halved. L_length is zero within �
 perimeter's tolerance (loss.boundary_length_loss). Units: m, N·m, rad."""
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 
 import numpy as np
@@ -31,6 +32,7 @@ from ..lbfgs import minimize_lbfgs
 from ..optim import minimize
 from ..pattern.regularizers import CurvatureRegularizer, SeamLengthRegularizer
 from ..pattern.sobolev import SobolevMetric
+from .candidate_workers import run_on_twins, worker_count
 from .guided_drape import guided_equilibrium
 from .measurement_fit import fit_measurements
 from .options import RecoverOptions
@@ -416,32 +418,16 @@ class CoOptObjective:
             return params, False
         lo, hi = np.log10(BENDING_RANGE[0]), np.log10(BENDING_RANGE[1])
         cands = [(d, {**params, "log_bend": np.asarray(params["log_bend"], np.float64) + d}) for d in offsets]
-        cands = [(d, c) for d, c in cands if lo <= c["log_bend"].min() and c["log_bend"].max() <= hi]
-        v_cur_unguided = None   # the current fabric's own warm and fresh drapes: made when a candidate is judged so
+        cands = [(d, c, mode == "unguided" or (mode == "asymmetric" and d < 0)) for d, c in cands
+                 if lo <= c["log_bend"].min() and c["log_bend"].max() <= hi]
+        # the current fabric's own warm and fresh drapes, when a candidate is judged so
+        v_cur_unguided = min(v_cur, self._fresh_value(params)) if any(u for *_, u in cands) else None
+        tasks = [lambda obj, c=c, u=u: obj._judge_bending(c, x_keep, v_cur, v_cur_unguided, u) for _, c, u in cands]
         ratio_best, best, v_best, x_best = 1.0 - self.opts.bending_margin, params, None, x_keep
-        for d, cand in cands:
-            unguided = mode == "unguided" or (mode == "asymmetric" and d < 0)
-            if unguided and v_cur_unguided is None:
-                v_cur_unguided = min(v_cur, self._fresh_value(params))
-            self.x_warm = x_keep.copy()
-            v = self._value_or_inf(cand)        # re-draped at k_b·10^d from the current drape
-            if not np.isfinite(v):
+        for (d, cand, _), judged in zip(cands, run_on_twins(self, tasks, worker_count(self.opts.candidate_workers))):
+            if judged is None:
                 continue
-            drapes = [(v, np.array(self.x_last))]
-            for kappa in (self.opts.guided_stiffness if self.scan_mesh is not None else ()):
-                try:
-                    self._guide(kappa)
-                except ValueError:
-                    break
-                self.x_warm = np.array(self.cloth.x)
-                drapes.append((self._value_or_inf(cand), np.array(self.x_last)))
-            judge, ref = min(dr[0] for dr in drapes), v_cur
-            if unguided:
-                judge, ref = v, v_cur_unguided
-                v_fresh = self._fresh_value(cand)
-                if np.isfinite(v_fresh):
-                    drapes.append((v_fresh, np.array(self.x_last)))
-                    judge = min(judge, v_fresh)
+            judge, ref, drapes = judged
             self.last_bending_judged.append((float(10.0 ** cand["log_bend"].reshape(-1)[0]), float(judge), float(ref)))
             if judge < ratio_best * ref:
                 ratio_best, best = judge / ref, cand
@@ -451,6 +437,50 @@ class CoOptObjective:
         self.restore(best)
         self.last_bending = v_best if best is not params else None
         return best, best is not params
+
+    def _judge_bending(self, cand, x_keep, v_cur, v_cur_unguided, unguided: bool):
+        """One candidate of try_bending: re-draped at its bending from x_keep, then scan-guided (each
+        of opts.guided_stiffness in turn), and with `unguided` also draped fresh. Returns (φ it is
+        judged on, the current's φ it is judged against, [(φ, drape) of each of its drapes]), or
+        None when its re-drape has no finite φ."""
+        self.x_warm = x_keep.copy()
+        v = self._value_or_inf(cand)        # re-draped at k_b·10^d from the current drape
+        if not np.isfinite(v):
+            return None
+        drapes = [(v, np.array(self.x_last))]
+        for kappa in (self.opts.guided_stiffness if self.scan_mesh is not None else ()):
+            try:
+                self._guide(kappa)
+            except ValueError:
+                break
+            self.x_warm = np.array(self.cloth.x)
+            drapes.append((self._value_or_inf(cand), np.array(self.x_last)))
+        judge, ref = min(dr[0] for dr in drapes), v_cur
+        if unguided:
+            judge, ref = v, v_cur_unguided
+            v_fresh = self._fresh_value(cand)
+            if np.isfinite(v_fresh):
+                drapes.append((v_fresh, np.array(self.x_last)))
+                judge = min(judge, v_fresh)
+        return judge, ref, drapes
+
+    def twin(self) -> "CoOptObjective":
+        """A copy that drapes on a clone of the cloth (Cloth.clone) and remembers fresh drapes in a
+        copy of this one's memory, at the same warm start: the same φ at the same parameters, bit
+        for bit, and safe to run beside this objective in another thread (candidate_workers.py).
+        The options, scan, samples and body model are shared (read only)."""
+        t = copy.copy(self)
+        t.cloth = self.cloth.clone()
+        t.x_warm, t._undo = np.array(self.x_warm), list(self._undo)
+        t._fresh_seen = dict(self._fresh_seen)
+        return t
+
+    def adopt_fresh(self, twin: "CoOptObjective") -> None:
+        """Remembers the fresh drapes a twin made (_fresh_value): values and drapes of the same
+        parameters, bit for bit, as this objective would have made."""
+        for key, (v, x) in twin._fresh_seen.items():
+            if key not in self._fresh_seen:
+                self._remember_fresh(key, v, x)
 
     def search_bending(self, params, steps, cancelled=lambda: False) -> tuple[dict, dict]:
         """A coarse-to-fine search of log10 k_b: for each d of `steps` (decades, > 0) in turn,

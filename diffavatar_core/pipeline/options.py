@@ -82,6 +82,7 @@ class RecoverOptions:
     bending_candidates: tuple = (1.0, -1.0)   # decades: log10 offsets of the bending tried at every check (CoOptObjective.try_bending)
     bending_margin: float = 0.02     # a bending candidate is kept when φ is lower by more than this fraction
     bending_compare: str = "guided"   # the drapes a bending candidate is judged on (CoOptObjective.try_bending): BENDING_COMPARE
+    candidate_workers: int = 0   # bending candidates draped at once, in threads (candidate_workers.py); 0: one per CPU of the process
     length_tolerance_pct: float = 2.0
     length_tolerance_min: float = 0.01
     patience: int = 5
@@ -130,6 +131,9 @@ class RecoverOptions:
                 "must be a list of non-zero offsets in decades, each within ±3")
         decades("measurement_fit_bending", lambda d: 0 < d <= 3,
                 "must be a list of search steps in decades, each in (0, 3]")
+        w = self.candidate_workers
+        if isinstance(w, bool) or not isinstance(w, int) or w < 0:
+            bad("candidate_workers", "must be an integer >= 0 (0: one per CPU)")
         m = self.bending_margin
         if isinstance(m, bool) or not isinstance(m, (int, float)) or not 0 <= m < 1:
             bad("bending_margin", "must be a fraction in [0, 1)")

@@ -79,3 +79,21 @@ def skirt_problem(_skirt_problem_module):
 def smooth_skirt_problem(_smooth_skirt_problem_module):
     """skirt_problem with the smooth contact plane (sim/contact_kernel.hpp)."""
     yield from _restored(_smooth_skirt_problem_module)
+
+
+@pytest.fixture(scope="module")
+def skirts():
+    """A coarse skirt draped on the default body (bending 5e-6 N·m), and the drape of the same
+    pattern with a stiffer fabric (1e-3 N·m): other folds, whose surface is the 'scan'."""
+    model = BodyModel.default()
+    p = model.zero_params()
+    body = (model.pose(p), model.faces)
+    g = make_template("skirt", landmarks=model.landmarks(p), edge_length=0.07)
+    out = []
+    for bend in (5e-6, 1e-3):
+        c = Cloth(g.rest, g.faces, g.x0, seams=g.seams, groups=g.panel[g.faces[:, 0]],
+                  materials=[ClothMaterial(bend_stiffness=bend)] * len(g.panels), body=body)
+        c.sew()
+        assert c.drape(max_steps=150, iterations=40, residual_tol=1e-8, refine_iterations=150).converged
+        out.append(c)
+    return g, out[0], np.array(out[1].x)

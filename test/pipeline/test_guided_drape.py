@@ -5,15 +5,11 @@ lower-φ of the warm and the guided drape."""
 import numpy as np
 import pytest
 
-from diffavatar_core.body import BodyModel
 from diffavatar_core.metrics import surface_distances
 from diffavatar_core.pattern.cage import build_cage
-from diffavatar_core.pattern.templates import make_template
 from diffavatar_core.pipeline import RecoverOptions
 from diffavatar_core.pipeline.coopt import CoOptObjective
 from diffavatar_core.pipeline.guided_drape import guided_equilibrium, scan_targets
-from diffavatar_core.sim.cloth import Cloth
-from diffavatar_core.sim.material import ClothMaterial
 
 GRAVITY = np.array([0.0, -9.81, 0.0])
 
@@ -27,24 +23,6 @@ def test_targets_are_closest_scan_points_within_the_capture_distance():
     t = scan_targets(x, V, F, capture=0.03)
     np.testing.assert_allclose(t[0], [0.3, 0.4, 0.0], atol=1e-12)
     np.testing.assert_array_equal(t[1:], x[1:])
-
-
-@pytest.fixture(scope="module")
-def skirts():
-    """A coarse skirt draped on the default body (bending 5e-6 N·m), and the drape of the same
-    pattern with a stiffer fabric (1e-3 N·m): other folds, whose surface is the 'scan'."""
-    model = BodyModel.default()
-    p = model.zero_params()
-    body = (model.pose(p), model.faces)
-    g = make_template("skirt", landmarks=model.landmarks(p), edge_length=0.07)
-    out = []
-    for bend in (5e-6, 1e-3):
-        c = Cloth(g.rest, g.faces, g.x0, seams=g.seams, groups=g.panel[g.faces[:, 0]],
-                  materials=[ClothMaterial(bend_stiffness=bend)] * len(g.panels), body=body)
-        c.sew()
-        assert c.drape(max_steps=150, iterations=40, residual_tol=1e-8, refine_iterations=150).converged
-        out.append(c)
-    return g, out[0], np.array(out[1].x)
 
 
 def test_a_drape_guided_toward_itself_is_an_ordinary_reequilibration(skirts):
