@@ -384,7 +384,7 @@ class CoOptObjective:
         while len(self._fresh_seen) > 8:
             self._fresh_seen.pop(next(iter(self._fresh_seen)))
 
-    def try_bending(self, params, offsets=None) -> tuple[dict, bool]:
+    def try_bending(self, params, offsets=None, current=None) -> tuple[dict, bool]:
         """A global step in the bending (N·m) the gradient does not take: L-BFGS moves log10 k_b by
         fractions of a decade, and a stiffer or softer fabric lands in other folds, so φ is not
         smooth over decades. For each offset d (decades) of opts.bending_candidates the current
@@ -406,14 +406,16 @@ class CoOptObjective:
         (params, False) with the bending fixed or no offsets. φ of a kept candidate is evaluated
         at its own equilibrium (last_bending); the cloth is left at the returned parameters and
         warm start. offsets: decades, default opts.bending_candidates. last_bending_judged: per
-        candidate evaluated, (its k_b N·m, its φ judged, the current's φ it is judged against)."""
+        candidate evaluated, (its k_b N·m, its φ judged, the current's φ it is judged against).
+        current: φ at `params` re-draped from the current warm start, when the caller has it (a
+        re-drape depends on the parameters and the warm start alone, bit for bit); None: evaluated here."""
         offsets = self.opts.bending_candidates if offsets is None else tuple(offsets)
         self.last_bending_judged = []
         if not offsets or "log_bend" not in params:
             return params, False
         mode = self.opts.bending_compare
         x_keep = np.array(self.x_warm)
-        v_cur = self._value_or_inf(params)
+        v_cur = self._value_or_inf(params) if current is None else current
         if not np.isfinite(v_cur):
             return params, False
         lo, hi = np.log10(BENDING_RANGE[0]), np.log10(BENDING_RANGE[1])
@@ -495,14 +497,15 @@ class CoOptObjective:
         start = float(10.0 ** np.asarray(params["log_bend"]).reshape(-1)[0])
         v0 = self._value_or_inf(params)
         value, kept, judged = v0, [], []
+        v_here = v0   # φ at params from the warm start: unchanged by a step that keeps nothing
         for d in steps:
             if cancelled() or not np.isfinite(value):
                 break
-            params, k = self.try_bending(params, (d, -d))
+            params, k = self.try_bending(params, (d, -d), current=v_here)
             kept.append(bool(k))
             judged.append([list(j) for j in self.last_bending_judged])
             if k:
-                value = self.last_bending
+                value, v_here = self.last_bending, None
         return params, {"steps_decades": list(steps), "kept": kept, "judged": judged, "bending_Nm_start": start,
                         "bending_Nm": float(10.0 ** np.asarray(params["log_bend"]).reshape(-1)[0]),
                         "value_start": float(v0) if np.isfinite(v0) else None,
