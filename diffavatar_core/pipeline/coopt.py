@@ -408,8 +408,9 @@ class CoOptObjective:
         warm start. offsets: decades, default opts.bending_candidates. last_bending_judged: per
         candidate evaluated, (its k_b N·m, its φ judged, the current's φ it is judged against).
         The candidates are draped at once, up to opts.candidate_workers (candidate_workers.py: on
-        twins of this objective, the same results bit for bit). current: φ at `params` re-draped from the current warm start, when the caller has it (a
-        re-drape depends on the parameters and the warm start alone, bit for bit); None: evaluated here."""
+        twins of this objective, the same results bit for bit). current: φ at `params` re-draped
+        from the current warm start, when the caller has it (a re-drape depends on the parameters
+        and the warm start alone, bit for bit); None: evaluated here."""
         offsets = self.opts.bending_candidates if offsets is None else tuple(offsets)
         self.last_bending_judged = []
         if not offsets or "log_bend" not in params:
