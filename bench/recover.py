@@ -28,7 +28,8 @@ fitbend_D (the bending searched after the measurement fit, which then runs again
 no search, one fit under the default bending); bendcompare_M (the drapes bending candidates are judged on,
 `bending_compare`: bendcompare_unguided, the warm re-drape and a fresh drape for the current bending and the
 candidates alike; bendcompare_asymmetric, softer candidates so, stiffer ones on their guided drapes too — stop
-49, neither the default); workers_N (the bending candidates of a check draped N at once, `candidate_workers`; the
+49, neither the default; @K: the lowest of K fresh drapes instead of one, `bending_fresh_drapes`, e.g.
+bendcompare_unguided@3 — stop 51); workers_N (the bending candidates of a check draped N at once, `candidate_workers`; the
 default 0 is one per CPU: workers_1, one after the other, is the reference of its times — the results are the same
 bit for bit).
 
@@ -171,8 +172,14 @@ def options_for(variant, iterations, output_edge=0.0, friction=None, contact_nor
             raise ValueError(f"variant {variant!r}: fitbend_D needs steps in decades joined by +, e.g. "
                              "fitbend_1+0.5+0.25, or fitbend_none") from None
         return o.with_(measurement_fit_bending=steps)
-    if variant.startswith("bendcompare_"):   # the drapes a bending candidate is judged on: guided | unguided | asymmetric
-        return o.with_(bending_compare=variant[len("bendcompare_"):])
+    if variant.startswith("bendcompare_"):   # the drapes a bending candidate is judged on: guided | unguided | asymmetric, @K fresh drapes
+        mode, _, k = variant[len("bendcompare_"):].partition("@")
+        try:
+            k = int(k) if k else o.bending_fresh_drapes
+        except ValueError:
+            raise ValueError(f"variant {variant!r}: bendcompare_M@K needs a whole number K of fresh drapes, "
+                             "e.g. bendcompare_unguided@3") from None
+        return o.with_(bending_compare=mode, bending_fresh_drapes=k)
     if variant.startswith("workers_"):   # bending candidates draped at once (candidate_workers): the same results, other times
         try:
             return o.with_(candidate_workers=int(variant[len("workers_"):]))

@@ -82,6 +82,7 @@ class RecoverOptions:
     bending_candidates: tuple = (1.0, -1.0)   # decades: log10 offsets of the bending tried at every check (CoOptObjective.try_bending)
     bending_margin: float = 0.02     # a bending candidate is kept when φ is lower by more than this fraction
     bending_compare: str = "guided"   # the drapes a bending candidate is judged on (CoOptObjective.try_bending): BENDING_COMPARE
+    bending_fresh_drapes: int = 1   # fresh drapes per bending an unguided judging takes the lowest φ of (CoOptObjective.fresh_min)
     candidate_workers: int = 0   # bending candidates draped at once, in threads (candidate_workers.py); 0: one per CPU of the process
     length_tolerance_pct: float = 2.0
     length_tolerance_min: float = 0.01
@@ -134,6 +135,9 @@ class RecoverOptions:
         w = self.candidate_workers
         if isinstance(w, bool) or not isinstance(w, int) or w < 0:
             bad("candidate_workers", "must be an integer >= 0 (0: one per CPU)")
+        k = self.bending_fresh_drapes
+        if isinstance(k, bool) or not isinstance(k, int) or not 1 <= k <= 16:
+            bad("bending_fresh_drapes", "must be an integer in [1, 16]")
         m = self.bending_margin
         if isinstance(m, bool) or not isinstance(m, (int, float)) or not 0 <= m < 1:
             bad("bending_margin", "must be a fraction in [0, 1)")

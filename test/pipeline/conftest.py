@@ -3,7 +3,10 @@ import numpy as np
 import pytest
 
 from diffavatar_core.body import BodyModel
+from diffavatar_core.pattern.cage import build_cage
 from diffavatar_core.pattern.templates import make_template
+from diffavatar_core.pipeline import RecoverOptions
+from diffavatar_core.pipeline.coopt import CoOptObjective
 from diffavatar_core.sim.cloth import Cloth
 from diffavatar_core.sim.material import ClothMaterial
 
@@ -97,3 +100,34 @@ def skirts():
         assert c.drape(max_steps=150, iterations=40, residual_tol=1e-8, refine_iterations=150).converged
         out.append(c)
     return g, out[0], np.array(out[1].x)
+
+
+@pytest.fixture(scope="module")
+def _soft_skirt_x0(skirts):
+    """The soft skirt's own drape (m), before any test of the module moves it."""
+    return np.array(skirts[1].x)
+
+
+def _soft_skirt_reset(c, x0):
+    c.set_control(bend_stiffness=np.full(len(np.asarray(c.control.bend_stiffness)), 5e-6))
+    c.reset(x0)
+
+
+@pytest.fixture
+def soft_skirt_objective(skirts, _soft_skirt_x0):
+    """make(**options) -> (CoOptObjective, θ): the soft skirt (5e-6 N·m) at its own drape, against
+    the stiff skirt's folds as the scan (points, openings and mesh), θ evaluated and committed.
+    The cloth is put back at its own drape and bending after the test."""
+    g, c, S = skirts
+
+    def make(**opts):
+        _soft_skirt_reset(c, _soft_skirt_x0)
+        loops = {k: S[v] for k, v in g.boundaries.items()}
+        o = RecoverOptions.from_config(residual_tol=1e-8, samples=200, **opts)
+        obj = CoOptObjective(c, g, S, loops, o, cage=build_cage(g), scan_mesh=(S, g.faces))
+        theta = obj.initial_params()
+        obj(theta)
+        obj.commit()
+        return obj, theta
+    yield make
+    _soft_skirt_reset(c, _soft_skirt_x0)

@@ -7,41 +7,8 @@ import threading
 import numpy as np
 import pytest
 
-from diffavatar_core.pattern.cage import build_cage
 from diffavatar_core.pipeline import RecoverOptions
 from diffavatar_core.pipeline.candidate_workers import run_on_twins, worker_count
-from diffavatar_core.pipeline.coopt import CoOptObjective
-
-
-@pytest.fixture(scope="module")
-def skirt_x0(skirts):
-    """The soft skirt's own drape (m), before any test of this module moves it."""
-    return np.array(skirts[1].x)
-
-
-@pytest.fixture
-def skirt(skirts, skirt_x0):
-    """(skirts, their soft cloth's own drape); the cloth is put back there after the test."""
-    yield skirts, skirt_x0
-    _reset(skirts[1], skirt_x0)
-
-
-def _reset(c, x0):
-    c.set_control(bend_stiffness=np.full(len(np.asarray(c.control.bend_stiffness)), 5e-6))
-    c.reset(x0)
-
-
-def _objective(skirt, **opts):
-    """The soft skirt (5e-6 N·m) at its own drape, against the stiff skirt's folds as the scan."""
-    (g, c, S), x0 = skirt
-    _reset(c, x0)
-    loops = {k: S[v] for k, v in g.boundaries.items()}
-    o = RecoverOptions.from_config(residual_tol=1e-8, samples=200, **opts)
-    obj = CoOptObjective(c, g, S, loops, o, cage=build_cage(g), scan_mesh=(S, g.faces))
-    theta = obj.initial_params()
-    obj(theta)
-    obj.commit()
-    return obj, theta
 
 
 def _outcome(obj, best, kept):
@@ -59,15 +26,16 @@ def _assert_same(a, b):
             assert a[k] == b[k], k
 
 
-@pytest.mark.parametrize("compare", ["guided", "unguided", "asymmetric"])
-def test_try_bending_at_once_is_try_bending_in_turn(skirt, compare):
+@pytest.mark.parametrize("compare,fresh", [("guided", 1), ("unguided", 1), ("asymmetric", 1), ("unguided", 3)])
+def test_try_bending_at_once_is_try_bending_in_turn(soft_skirt_objective, compare, fresh):
     """Three candidates (one 10× softer, two stiffer), one after the other and two or three at
     once: the same judged values, kept candidate, φ, drapes and remembered fresh drapes, bit for
-    bit; and φ evaluated next from the warm start they leave is the same."""
+    bit; and φ evaluated next from the warm start they leave is the same. With three fresh drapes
+    per bending (bending_fresh_drapes) the current bending's are draped at once too."""
     out = []
     for workers in (1, 2, 3):
-        obj, theta = _objective(skirt, bending_candidates=[-1, 1, 2], bending_compare=compare,
-                                candidate_workers=workers)
+        obj, theta = soft_skirt_objective(bending_candidates=[-1, 1, 2], bending_compare=compare,
+                                          candidate_workers=workers, bending_fresh_drapes=fresh)
         best, kept = obj.try_bending(theta)
         o = _outcome(obj, best, kept)
         o["next"] = obj.value(best)
@@ -77,10 +45,10 @@ def test_try_bending_at_once_is_try_bending_in_turn(skirt, compare):
     _assert_same(out[0], out[2])
 
 
-def test_search_bending_at_once_is_search_bending_in_turn(skirt):
+def test_search_bending_at_once_is_search_bending_in_turn(soft_skirt_objective):
     reports = []
     for workers in (1, 2):
-        obj, theta = _objective(skirt, candidate_workers=workers)
+        obj, theta = soft_skirt_objective(candidate_workers=workers)
         best, report = obj.search_bending(theta, (1.0, 0.5))
         reports.append((np.array(best["log_bend"]), report, np.array(obj.x_warm)))
     np.testing.assert_array_equal(reports[0][0], reports[1][0])
@@ -88,8 +56,8 @@ def test_search_bending_at_once_is_search_bending_in_turn(skirt):
     np.testing.assert_array_equal(reports[0][2], reports[1][2])
 
 
-def test_each_candidate_but_the_last_runs_on_a_twin_in_another_thread(skirt):
-    obj, theta = _objective(skirt)
+def test_each_candidate_but_the_last_runs_on_a_twin_in_another_thread(soft_skirt_objective):
+    obj, theta = soft_skirt_objective()
     seen = []
 
     def task(o, i):
@@ -107,8 +75,8 @@ def test_each_candidate_but_the_last_runs_on_a_twin_in_another_thread(skirt):
     assert all(tid == main and o is obj for _, tid, o, _ in seen)
 
 
-def test_a_failing_candidate_reaches_the_caller(skirt):
-    obj, _ = _objective(skirt)
+def test_a_failing_candidate_reaches_the_caller(soft_skirt_objective):
+    obj, _ = soft_skirt_objective()
 
     def task(o, i):
         if i == 0:
