@@ -28,8 +28,9 @@ fitbend_D (the bending searched after the measurement fit, which then runs again
 no search, one fit under the default bending); bendcompare_M (the drapes bending candidates are judged on,
 `bending_compare`: bendcompare_unguided, the warm re-drape and a fresh drape for the current bending and the
 candidates alike; bendcompare_asymmetric, softer candidates so, stiffer ones on their guided drapes too — stop
-49, neither the default; @K: the lowest of K fresh drapes instead of one, `bending_fresh_drapes`, e.g.
-bendcompare_unguided@3 — stop 51); workers_N (the bending candidates of a check draped N at once, `candidate_workers`; the
+49, neither the default; bendcompare_fresh, the current bending and the candidates alike on their fresh drapes
+alone; @K: the lowest of K fresh drapes instead of one, `bending_fresh_drapes`, e.g. bendcompare_fresh@3 —
+stop 51); workers_N (the bending candidates of a check draped N at once, `candidate_workers`; the
 default 0 is one per CPU: workers_1, one after the other, is the reference of its times — the results are the same
 bit for bit).
 

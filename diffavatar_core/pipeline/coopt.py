@@ -420,7 +420,9 @@ class CoOptObjective:
         over soft fabrics: t-shirt 101 went 1.3 decades soft), but on the thirteen benchmark cases
         this judging did worse (BENCHMARKS.md stop 49); 'asymmetric': softer candidates as in
         'unguided', stiffer ones as in 'guided' (a stiffer cloth springs back to its own folds
-        after a pull, a softer one need not). The candidate judged lowest relative to the current
+        after a pull, a softer one need not); 'fresh': the current bending and each candidate alike
+        on their fresh drapes alone (a soft cloth's warm re-drape keeps the current's fitted folds).
+        Fresh drapes: the lowest of opts.bending_fresh_drapes (fresh_min). The candidate judged lowest relative to the current
         φ it is judged against becomes the iterate when that ratio is below
         1 − opts.bending_margin: re-drapes of one θ differ by
         about a percent (the fold state), and a material change must explain the scan better than
@@ -445,26 +447,28 @@ class CoOptObjective:
             return params, False
         lo, hi = np.log10(BENDING_RANGE[0]), np.log10(BENDING_RANGE[1])
         cands = [(d, {**params, "log_bend": np.asarray(params["log_bend"], np.float64) + d}) for d in offsets]
-        cands = [(d, c, mode == "unguided" or (mode == "asymmetric" and d < 0)) for d, c in cands
-                 if lo <= c["log_bend"].min() and c["log_bend"].max() <= hi]
-        # the current fabric's own warm and fresh drapes, when a candidate is judged so (the fresh
-        # drapes at once, as the candidates: remembered, fresh_min then finds them)
-        v_cur_unguided = None
-        if any(u for *_, u in cands):
+        how = {"asymmetric": lambda d: "unguided" if d < 0 else "guided"}.get(mode, lambda d: mode)
+        cands = [(d, c, how(d)) for d, c in cands if lo <= c["log_bend"].min() and c["log_bend"].max() <= hi]
+        # what each kind of judging compares a candidate with: the current fabric's warm drape, and
+        # its fresh drapes when a candidate is judged on them (draped at once, as the candidates:
+        # remembered, fresh_min then finds them)
+        ref = {"guided": v_cur}
+        if any(h != "guided" for *_, h in cands):
             if self.opts.bending_fresh_drapes > 1:
                 run_on_twins(self, [lambda obj, j=j: obj._fresh_value(params, j)
                                     for j in range(self.opts.bending_fresh_drapes)],
                              worker_count(self.opts.candidate_workers))
-            v_cur_unguided = min(v_cur, self.fresh_min(params))
-        tasks = [lambda obj, c=c, u=u: obj._judge_bending(c, x_keep, v_cur, v_cur_unguided, u) for _, c, u in cands]
+            ref["fresh"] = self.fresh_min(params)
+            ref["unguided"] = min(v_cur, ref["fresh"])
+        tasks = [lambda obj, c=c, h=h: obj._judge_bending(c, x_keep, ref[h], h) for _, c, h in cands]
         ratio_best, best, v_best, x_best = 1.0 - self.opts.bending_margin, params, None, x_keep
         for (d, cand, _), judged in zip(cands, run_on_twins(self, tasks, worker_count(self.opts.candidate_workers))):
             if judged is None:
                 continue
-            judge, ref, drapes = judged
-            self.last_bending_judged.append((float(10.0 ** cand["log_bend"].reshape(-1)[0]), float(judge), float(ref)))
-            if judge < ratio_best * ref:
-                ratio_best, best = judge / ref, cand
+            judge, against, drapes = judged
+            self.last_bending_judged.append((float(10.0 ** cand["log_bend"].reshape(-1)[0]), float(judge), float(against)))
+            if np.isfinite(against) and judge < ratio_best * against:   # against = ∞: no fresh drape of the current
+                ratio_best, best = judge / against, cand
                 v_best, x_best = min(drapes, key=lambda dr: dr[0])
         self.x_warm = x_best
         self.x_last = x_best
@@ -472,11 +476,13 @@ class CoOptObjective:
         self.last_bending = v_best if best is not params else None
         return best, best is not params
 
-    def _judge_bending(self, cand, x_keep, v_cur, v_cur_unguided, unguided: bool):
+    def _judge_bending(self, cand, x_keep, ref: float, how: str):
         """One candidate of try_bending: re-draped at its bending from x_keep, then scan-guided (each
-        of opts.guided_stiffness in turn), and with `unguided` also draped fresh. Returns (φ it is
-        judged on, the current's φ it is judged against, [(φ, drape) of each of its drapes]), or
-        None when its re-drape has no finite φ."""
+        of opts.guided_stiffness in turn), and unless `how` is 'guided' also draped fresh (fresh_min).
+        Judged (how, as opts.bending_compare) on the lowest φ of all these drapes ('guided'), of the
+        re-drape and the fresh drapes ('unguided'), or of the fresh drapes alone ('fresh'). Returns
+        (φ it is judged on, ref — the current's φ it is judged against —, [(φ, drape) of each of its
+        drapes]), or None when its re-drape has no finite φ."""
         self.x_warm = x_keep.copy()
         v = self._value_or_inf(cand)        # re-draped at k_b·10^d from the current drape
         if not np.isfinite(v):
@@ -489,13 +495,12 @@ class CoOptObjective:
                 break
             self.x_warm = np.array(self.cloth.x)
             drapes.append((self._value_or_inf(cand), np.array(self.x_last)))
-        judge, ref = min(dr[0] for dr in drapes), v_cur
-        if unguided:
-            judge, ref = v, v_cur_unguided
+        judge = min(dr[0] for dr in drapes)
+        if how != "guided":
             v_fresh = self.fresh_min(cand)
             if np.isfinite(v_fresh):
                 drapes.append((v_fresh, np.array(self.x_last)))
-                judge = min(judge, v_fresh)
+            judge = min(v, v_fresh) if how == "unguided" else v_fresh
         return judge, ref, drapes
 
     def twin(self) -> "CoOptObjective":

@@ -14,7 +14,7 @@ OPTIMIZERS = ("lbfgs", "adam")
 BENDING = ("garment", "panel", "fixed")
 STRETCH = ("fixed", "garment")
 INTERIOR_TO = ("surface", "points")
-BENDING_COMPARE = ("guided", "unguided", "asymmetric")   # CoOptObjective.try_bending
+BENDING_COMPARE = ("guided", "unguided", "asymmetric", "fresh")   # CoOptObjective.try_bending
 
 
 @dataclass(frozen=True)

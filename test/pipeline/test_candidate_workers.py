@@ -26,7 +26,8 @@ def _assert_same(a, b):
             assert a[k] == b[k], k
 
 
-@pytest.mark.parametrize("compare,fresh", [("guided", 1), ("unguided", 1), ("asymmetric", 1), ("unguided", 3)])
+@pytest.mark.parametrize("compare,fresh", [("guided", 1), ("unguided", 1), ("asymmetric", 1), ("unguided", 3),
+                                           ("fresh", 2)])
 def test_try_bending_at_once_is_try_bending_in_turn(soft_skirt_objective, compare, fresh):
     """Three candidates (one 10× softer, two stiffer), one after the other and two or three at
     once: the same judged values, kept candidate, φ, drapes and remembered fresh drapes, bit for

@@ -69,6 +69,27 @@ def test_more_fresh_drapes_judge_every_bending_no_higher(soft_skirt_objective):
         assert kb1 == kb3 and v3 <= v1 and ref3 <= ref1
 
 
+def test_fresh_judging_compares_fresh_drapes_alone(soft_skirt_objective):
+    """bending_compare 'fresh': the current bending and each candidate judged on the lowest φ of
+    their fresh drapes and on nothing else — the same values, bit for bit, as fresh_min of each
+    asked directly on another objective — and a kept candidate's warm start is the lowest-φ drape
+    it was judged with or made (its re-drape, guided drapes, fresh drapes)."""
+    obj, theta = soft_skirt_objective(bending_candidates=[-1, 1], bending_compare="fresh", bending_fresh_drapes=2,
+                                      bending_margin=0.0)
+    best, kept = obj.try_bending(theta)
+    judged = obj.last_bending_judged
+    ref, _ = soft_skirt_objective(bending_fresh_drapes=2)
+    v_cur = ref.fresh_min(theta)
+    assert len(judged) == 2
+    for (kb, v, against), d in zip(judged, (-1, 1)):
+        cand = {**theta, "log_bend": np.asarray(theta["log_bend"], np.float64) + d}
+        assert kb == float(10.0 ** cand["log_bend"].reshape(-1)[0])
+        assert against == v_cur and v == ref.fresh_min(cand)
+    assert kept == (min(v for _, v, _ in judged) < v_cur)
+    if kept:
+        assert obj.last_bending <= min(v for _, v, _ in judged)
+
+
 @pytest.mark.parametrize("value", [0, 17, 1.5, True, "3"])
 def test_bending_fresh_drapes_is_validated(value):
     with pytest.raises(ValueError, match="bending_fresh_drapes"):
