@@ -407,7 +407,7 @@ class CoOptObjective:
         while len(self._fresh_seen) > 8 * self.opts.bending_fresh_drapes:
             self._fresh_seen.pop(next(iter(self._fresh_seen)))
 
-    def try_bending(self, params, offsets=None, current=None) -> tuple[dict, bool]:
+    def try_bending(self, params, offsets=None, current=None, prepare=None, compare=None) -> tuple[dict, bool]:
         """A global step in the bending (N·m) the gradient does not take: L-BFGS moves log10 k_b by
         fractions of a decade, and a stiffer or softer fabric lands in other folds, so φ is not
         smooth over decades. For each offset d (decades) of opts.bending_candidates the current
@@ -435,12 +435,16 @@ class CoOptObjective:
         The candidates are draped at once, up to opts.candidate_workers (candidate_workers.py: on
         twins of this objective, the same results bit for bit). current: φ at `params` re-draped
         from the current warm start, when the caller has it (a re-drape depends on the parameters
-        and the warm start alone, bit for bit); None: evaluated here."""
+        and the warm start alone, bit for bit); None: evaluated here. prepare(obj, candidate) ->
+        candidate: applied to each candidate first, on the objective that judges it, from the
+        current warm start (search_bending's refit: its measurements fitted again at its bending);
+        a ValueError there drops the candidate. compare: the judging for this call instead of
+        opts.bending_compare."""
         offsets = self.opts.bending_candidates if offsets is None else tuple(offsets)
         self.last_bending_judged = []
         if not offsets or "log_bend" not in params:
             return params, False
-        mode = self.opts.bending_compare
+        mode = self.opts.bending_compare if compare is None else compare
         x_keep = np.array(self.x_warm)
         v_cur = self._value_or_inf(params) if current is None else current
         if not np.isfinite(v_cur):
@@ -460,12 +464,12 @@ class CoOptObjective:
                              worker_count(self.opts.candidate_workers))
             ref["fresh"] = self.fresh_min(params)
             ref["unguided"] = min(v_cur, ref["fresh"])
-        tasks = [lambda obj, c=c, h=h: obj._judge_bending(c, x_keep, ref[h], h) for _, c, h in cands]
+        tasks = [lambda obj, c=c, h=h: obj._judge_bending(c, x_keep, ref[h], h, prepare) for _, c, h in cands]
         ratio_best, best, v_best, x_best = 1.0 - self.opts.bending_margin, params, None, x_keep
-        for (d, cand, _), judged in zip(cands, run_on_twins(self, tasks, worker_count(self.opts.candidate_workers))):
+        for judged in run_on_twins(self, tasks, worker_count(self.opts.candidate_workers)):
             if judged is None:
                 continue
-            judge, against, drapes = judged
+            judge, against, drapes, cand = judged
             self.last_bending_judged.append((float(10.0 ** cand["log_bend"].reshape(-1)[0]), float(judge), float(against)))
             if np.isfinite(against) and judge < ratio_best * against:   # against = ∞: no fresh drape of the current
                 ratio_best, best = judge / against, cand
@@ -476,14 +480,23 @@ class CoOptObjective:
         self.last_bending = v_best if best is not params else None
         return best, best is not params
 
-    def _judge_bending(self, cand, x_keep, ref: float, how: str):
+    def _judge_bending(self, cand, x_keep, ref: float, how: str, prepare=None):
         """One candidate of try_bending: re-draped at its bending from x_keep, then scan-guided (each
         of opts.guided_stiffness in turn), and unless `how` is 'guided' also draped fresh (fresh_min).
         Judged (how, as opts.bending_compare) on the lowest φ of all these drapes ('guided'), of the
         re-drape and the fresh drapes ('unguided'), or of the fresh drapes alone ('fresh'). Returns
         (φ it is judged on, ref — the current's φ it is judged against —, [(φ, drape) of each of its
-        drapes]), or None when its re-drape has no finite φ."""
+        drapes], the candidate), or None when its re-drape has no finite φ. prepare: try_bending's
+        (the candidate re-draped from where it leaves the warm start)."""
         self.x_warm = x_keep.copy()
+        if prepare is not None:
+            undo = list(self._undo)   # what prepare commits is not this objective's history
+            try:
+                cand = prepare(self, cand)
+            except (ValueError, FloatingPointError):
+                return None
+            finally:
+                self._undo = undo
         v = self._value_or_inf(cand)        # re-draped at k_b·10^d from the current drape
         if not np.isfinite(v):
             return None
@@ -501,7 +514,7 @@ class CoOptObjective:
             if np.isfinite(v_fresh):
                 drapes.append((v_fresh, np.array(self.x_last)))
             judge = min(v, v_fresh) if how == "unguided" else v_fresh
-        return judge, ref, drapes
+        return judge, ref, drapes, cand
 
     def twin(self) -> "CoOptObjective":
         """A copy that drapes on a clone of the cloth (Cloth.clone) and remembers fresh drapes in a
@@ -521,7 +534,7 @@ class CoOptObjective:
             if key not in self._fresh_seen:
                 self._remember_fresh(key, v, x)
 
-    def search_bending(self, params, steps, cancelled=lambda: False) -> tuple[dict, dict]:
+    def search_bending(self, params, steps, cancelled=lambda: False, refit=None) -> tuple[dict, dict]:
         """A coarse-to-fine search of log10 k_b: for each d of `steps` (decades, > 0) in turn,
         try_bending with the offsets (d, −d) from the bending the last one kept — so (1, 0.5, 0.25)
         can end anywhere within ±1.75 decades of the start, on a 0.25-decade grid. Each kept step
@@ -529,7 +542,10 @@ class CoOptObjective:
         'bending_Nm_start' / 'bending_Nm' (the first group's, N·m), 'steps_decades', 'kept' (per
         step), 'judged' (per step, per candidate [k_b N·m, φ judged, the current's φ]: try_bending's
         last_bending_judged), 'value_start' / 'value' (φ; value_start None when φ is
-        not evaluable there)."""
+        not evaluable there). refit(obj, params) -> params: each candidate's outline fitted again at
+        its bending before it is judged, and then judged on its fresh drapes ('fresh' judging,
+        fresh_min) — φ profiled over the outline: a fabric judged on the outline fitted under another
+        one loses to it (co_optimize, opts.measurement_fit_refit)."""
         steps = tuple(float(d) for d in steps)
         start = float(10.0 ** np.asarray(params["log_bend"]).reshape(-1)[0])
         v0 = self._value_or_inf(params)
@@ -538,7 +554,10 @@ class CoOptObjective:
         for d in steps:
             if cancelled() or not np.isfinite(value):
                 break
-            params, k = self.try_bending(params, (d, -d), current=v_here)
+            if refit is None:
+                params, k = self.try_bending(params, (d, -d), current=v_here)
+            else:
+                params, k = self.try_bending(params, (d, -d), current=v_here, prepare=refit, compare="fresh")
             kept.append(bool(k))
             judged.append([list(j) for j in self.last_bending_judged])
             if k:
@@ -608,7 +627,13 @@ def co_optimize(cloth, garment, scan_points, scan_loops: dict, opts: RecoverOpti
             # outline a softer fabric hides a wrong length in folds (t-shirts 101 / 102 went 1.3 / 2.3
             # decades soft)
             params["handles"] = measurement_map.parameters(fit.handles, vertices=cage is None).copy()
-            params, searched = obj.search_bending(params, opts.measurement_fit_bending, cancelled)
+            refit = None
+            if opts.measurement_fit_refit:
+                def refit(o, p, start=fit.values):   # the candidate's measurements fitted again at its bending
+                    f = fit_measurements(o, measurement_map, p, opts.measurement_fit_iterations,
+                                         opts.step_sizes.measurements, cancelled=cancelled, start=start)
+                    return {**p, "handles": measurement_map.parameters(f.handles, vertices=cage is None).copy()}
+            params, searched = obj.search_bending(params, opts.measurement_fit_bending, cancelled, refit)
             if any(searched["kept"]) and not cancelled():
                 try:
                     again = fit_measurements(obj, measurement_map, params, opts.measurement_fit_iterations,

@@ -75,6 +75,7 @@ class RecoverOptions:
     fresh_every: int = 5
     measurement_fit_iterations: int = 10
     measurement_fit_bending: tuple = (1.0, 0.5, 0.25)   # decades: the bending searched after the fit, which then runs again (CoOptObjective.search_bending); () none
+    measurement_fit_refit: bool = False   # each bending search candidate's measurements fitted again at its bending, judged on fresh drapes (search_bending refit)
     template_sizing: bool = True
     masses_follow_rest: bool = True
     guided_stiffness: tuple = (1.0e4, 1.0e6)   # 1/s², each in turn (CoOptObjective.try_guided); a number k is (k,), 0 is ()
@@ -149,7 +150,7 @@ class RecoverOptions:
         if self.measurement_fit_iterations and not self.step_sizes.measurements > 0:
             raise ValueError("recover options: step_sizes.measurements must be positive when "
                              f"measurement_fit_iterations is {self.measurement_fit_iterations}")
-        for name in ("optimize_body", "masses_follow_rest", "template_sizing"):
+        for name in ("optimize_body", "masses_follow_rest", "template_sizing", "measurement_fit_refit"):
             if not isinstance(getattr(self, name), bool):
                 bad(name, "must be true or false")
         for name in ("output_drape_steps", "output_drape_sweeps", "output_drape_substeps", "drape_rounds"):
