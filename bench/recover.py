@@ -31,7 +31,9 @@ candidates alike; bendcompare_asymmetric, softer candidates so, stiffer ones on 
 49, neither the default; bendcompare_fresh, the current bending and the candidates alike on their fresh drapes
 alone; @K: the lowest of K fresh drapes instead of one, `bending_fresh_drapes`, e.g. bendcompare_fresh@3 —
 stop 51); fitrefit@K (the search after the measurement fit with each candidate's measurements fitted again at its
-bending and judged on the lowest of K fresh drapes, `measurement_fit_refit` — stop 51); workers_N (the bending candidates of a check draped N at once, `candidate_workers`; the
+bending and judged on the lowest of K fresh drapes, `measurement_fit_refit` — stop 51; fitrefit_M@K: and the
+checks' bending candidates judged as bendcompare_M, e.g. fitrefit_fresh@3; fitrefit_none@K: no candidates at the
+checks, `bending_candidates: []`); workers_N (the bending candidates of a check draped N at once, `candidate_workers`; the
 default 0 is one per CPU: workers_1, one after the other, is the reference of its times — the results are the same
 bit for bit).
 
@@ -175,12 +177,16 @@ def options_for(variant, iterations, output_edge=0.0, friction=None, contact_nor
                              "fitbend_1+0.5+0.25, or fitbend_none") from None
         return o.with_(measurement_fit_bending=steps)
     if variant.startswith("fitrefit"):   # the search's candidates re-fitted at their bending, judged on K fresh drapes (@K)
-        _, _, k = variant.partition("@")
+        spec, _, k = variant.partition("@")   # fitrefit_M: the checks' candidates judged as bendcompare_M; fitrefit_none: no checks' candidates
         try:
             k = int(k) if k else o.bending_fresh_drapes
         except ValueError:
             raise ValueError(f"variant {variant!r}: fitrefit@K needs a whole number K of fresh drapes, e.g. fitrefit@3") from None
-        return o.with_(measurement_fit_refit=True, bending_fresh_drapes=k)
+        o = o.with_(measurement_fit_refit=True, bending_fresh_drapes=k)
+        checks = spec[len("fitrefit_"):] if spec.startswith("fitrefit_") else ""
+        if checks == "none":
+            return o.with_(bending_candidates=[])
+        return o.with_(bending_compare=checks) if checks else o
     if variant.startswith("bendcompare_"):   # the drapes a bending candidate is judged on: guided | unguided | asymmetric, @K fresh drapes
         mode, _, k = variant[len("bendcompare_"):].partition("@")
         try:
