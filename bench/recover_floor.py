@@ -13,6 +13,12 @@ drape, which a recovery on another triangulation need not reproduce fold for fol
 
 `--contact-normals face|smooth|valley`: the contact plane of the truth and of every drape here.
 
+`--bending-offsets -1,-0.5,0,0.5,1 [--fresh-drapes 3]`: also (d) the truth outline on the template
+mesh draped fresh at the true bending × 10^d for each d, --fresh-drapes times — the template layout as
+it is, then moved by the pipeline's FRESH_JITTER noise (seeds 1, 2, …), as CoOptObjective.fresh_min
+drapes — each drape's Chamfer (cm; null when it did not converge): whether the lowest of a few fresh
+drapes finds the true bending where every other parameter is exact (truth_outline_bending_cm).
+
 Run: `.venv/bin/python bench/recover_floor.py [--templates skirt,tshirt] [--cases 3]
 [--contact-normals valley] [--retriangulate 0.975,1,1.025]`."""
 
@@ -24,6 +30,7 @@ from diffavatar_core.metrics import chamfer_meshes
 from diffavatar_core.pattern.cage import build_cage, cage_handles
 from diffavatar_core.pattern.templates import make_template
 from diffavatar_core.pipeline import RecoverOptions
+from diffavatar_core.pipeline.coopt import FRESH_JITTER
 from diffavatar_core.pipeline.recovery import scan_for_recovery
 from diffavatar_core.pipeline.synthetic import drape_truth, make_case
 from diffavatar_core.sim.cloth import CONTACT_NORMALS, Cloth
@@ -69,9 +76,9 @@ def floor_case(template: str, seed: int, bend: float, args) -> dict:
                                RecoverOptions.from_config(units=case.units, up=case.up)).garment_mesh()
     cm = lambda x, F: 100 * chamfer_meshes(np.asarray(x), F, Vs, Fs, samples=20000)
 
-    def cloth(rest):
-        c = Cloth(g.rest, g.faces, g.x0, seams=g.seams, groups=g.panel[g.faces[:, 0]],
-                  materials=[ClothMaterial(bend_stiffness=bend)] * len(g.panels),
+    def cloth(rest, b=bend, x0=g.x0):
+        c = Cloth(g.rest, g.faces, x0, seams=g.seams, groups=g.panel[g.faces[:, 0]],
+                  materials=[ClothMaterial(bend_stiffness=b)] * len(g.panels),
                   body=(case.body_vertices, case.body_faces), grain=g.face_grain(), contact_normals=planes)
         c.set_control(rest=rest)
         c.sew()
@@ -92,6 +99,15 @@ def floor_case(template: str, seed: int, bend: float, args) -> dict:
     c = cloth(rest_truth)
     out["truth_outline_fresh_converged"] = drape(c)
     out["truth_outline_fresh_cm"] = cm(c.x, g.faces)
+    if args.bending_offsets:
+        out["truth_outline_bending_cm"] = {}
+        for d in args.bending_offsets:
+            row = []
+            for j in range(args.fresh_drapes):
+                x0 = g.x0 + (np.random.default_rng(j).normal(scale=FRESH_JITTER, size=g.x0.shape) if j else 0.0)
+                c = cloth(rest_truth, bend * 10.0 ** d, x0)
+                row.append(round(cm(c.x, g.faces), 4) if drape(c) else None)
+            out["truth_outline_bending_cm"][f"{d:g}"] = row
     out["truth_retriangulated_cm"] = {}
     for f in args.retriangulate:   # the truth's own parameters on another mesh of the same pattern, draped as it was
         gt = make_template(template, landmarks=lm, edge_length=0.04 * f, **case.measurements)
@@ -108,6 +124,9 @@ def floor_case(template: str, seed: int, bend: float, args) -> dict:
 def main():
     def add_arguments(ap):
         ap.add_argument("--contact-normals", default="face", choices=CONTACT_NORMALS)
+        ap.add_argument("--bending-offsets", type=lambda t: [float(v) for v in t.split(",") if v], default=[],
+                        help="decades: the truth outline also draped fresh at the true bending × 10^d for each d (default: none)")
+        ap.add_argument("--fresh-drapes", type=int, default=3, help="fresh drapes per bending offset (default 3)")
         ap.add_argument("--retriangulate", type=lambda t: [float(v) for v in t.split(",") if v], default=[0.975, 1.0, 1.025],
                         help="edge-length factors of the truth's re-triangulations (default 0.975,1,1.025; 1 re-drapes the truth itself)")
     run_grid("recover_floor", floor_case, add_arguments=add_arguments)
