@@ -49,7 +49,7 @@ With --output-edge the result is carried to a finer output mesh; --truth-edge se
 truth on a mesh that fine too (a 1 cm cloth does not fold as a 4 cm one: the truth of a 10k output).
 
 Run: `.venv/bin/python bench/recover.py [--cases N] [--iterations N] [--variants full,no_cage]
-[--output-edge 0.008] [--truth-edge 0.01] [--first-case K] [--paper-optimizer] [--roundoff-seed N]`.
+[--output-edge 0.008] [--truth-edge 0.01] [--first-case K] [--last-case K] [--paper-optimizer] [--roundoff-seed N]`.
 --roundoff-seed N perturbs every template pattern by 1e-13 m of seeded noise: runs with a few seeds
 give the spread another CPU's round-off could give (the drapes are chaotic).
 """
@@ -264,6 +264,7 @@ def main():
     ap.add_argument("--output-edge", type=float, default=0.0,
                     help="m; > 0: the result carried to a finer output mesh (coarse-to-fine; e.g. 0.008 ≈ 10k vertices)")
     ap.add_argument("--first-case", type=int, default=0, help="index of the first case (to split runs)")
+    ap.add_argument("--last-case", type=int, default=None, help="index after the last case (default --cases)")
     ap.add_argument("--compliance-scales", default="1",
                     help="comma-separated; case k's truth has the default stretch compliances × scales[k %% len] "
                          "(for the `stretch` variant, which optimizes them)")
@@ -299,7 +300,7 @@ def main():
            "roundoff_seed": args.roundoff_seed, "cases": []}
     per_variant = {v: [] for v in variants}
     failed = {v: 0 for v in variants}   # cases whose recovery raised RecoveryError (not in the means)
-    for k in range(args.first_case, args.cases):
+    for k in range(args.first_case, args.cases if args.last_case is None else min(args.last_case, args.cases)):
         tpl = templates[k % len(templates)]
         # bending spread over two decades across the cases
         bend = 10 ** (-6 + 2 * k / max(args.cases - 1, 1))
