@@ -392,7 +392,8 @@ class CoOptObjective:
         template layout as it is, then jittered with seeds 1, 2, …): a soft fabric's fresh drape
         lands in one of many fold states, which move φ by as much as a decade of bending does, and
         the lowest of a few compares fabrics with less of that luck (BENCHMARKS.md stop 51). x_warm
-        and x_last are set to the lowest's drape; ∞ when none has a finite φ."""
+        and x_last are set to the lowest's drape; ∞ when none has a finite φ (x_warm and x_last then
+        as the last fresh drape left them)."""
         best, x_best = np.inf, None
         for j in range(self.opts.bending_fresh_drapes):
             v = self._fresh_value(params, j)
@@ -422,8 +423,8 @@ class CoOptObjective:
         'unguided', stiffer ones as in 'guided' (a stiffer cloth springs back to its own folds
         after a pull, a softer one need not); 'fresh': the current bending and each candidate alike
         on their fresh drapes alone (a soft cloth's warm re-drape keeps the current's fitted folds).
-        Fresh drapes: the lowest of opts.bending_fresh_drapes (fresh_min). The candidate judged lowest relative to the current
-        φ it is judged against becomes the iterate when that ratio is below
+        Fresh drapes: the lowest of opts.bending_fresh_drapes (fresh_min). The candidate judged
+        lowest relative to the current φ it is judged against becomes the iterate when that ratio is below
         1 − opts.bending_margin: re-drapes of one θ differ by
         about a percent (the fold state), and a material change must explain the scan better than
         that (stop 43); its warm start is the lowest-φ of its drapes. Candidates outside
