@@ -78,7 +78,7 @@ VARIANTS = ("full", "no_cage", "no_seam", "no_curvature")
 # and with another weight σ of the interior term
 EXTRA_VARIANTS = ("euclidean", "no_cage_euclidean", "unguided", "no_measurement_fit", "fixed_masses", "stretch", "bending_step_1",
                   "robust_boundary", "unsized", "interior_K", "to_surface", "to_points",
-                  "guided_K", "bendtry_D", "outdrag_K", "fitbend_D", "bendcompare_M", "workers_N")   # interior_K: σ = K per m², e.g. interior_1; guided_K: κ_g = K per s² (K+L+…: each in turn)
+                  "guided_K", "bendtry_D", "outdrag_K", "fitbend_D", "bendcompare_M@K", "fitrefit_M@K", "workers_N")   # interior_K: σ = K per m², e.g. interior_1; guided_K: κ_g = K per s² (K+L+…: each in turn)
 
 
 def corner_edge_lengths(g, corners_from=None) -> list:
@@ -114,6 +114,15 @@ def stretch_log10_error(material, case) -> float:
     pairs = ((material.compliance_warp, t.warp_compliance), (material.compliance_weft, t.weft_compliance),
              (material.compliance_shear, t.shear_compliance))
     return float(np.mean([abs(math.log10(r / w)) for r, w in pairs]))
+
+
+def _fresh_drapes_suffix(variant, o):
+    """(the variant without its @K suffix, K): fresh drapes per bending (bending_fresh_drapes), o's without @K."""
+    spec, _, k = variant.partition("@")
+    try:
+        return spec, int(k) if k else o.bending_fresh_drapes
+    except ValueError:
+        raise ValueError(f"variant {variant!r}: @K needs a whole number K of fresh drapes, e.g. {spec}@3") from None
 
 
 def options_for(variant, iterations, output_edge=0.0, friction=None, contact_normals=None, paper_optimizer=False):
@@ -176,25 +185,16 @@ def options_for(variant, iterations, output_edge=0.0, friction=None, contact_nor
             raise ValueError(f"variant {variant!r}: fitbend_D needs steps in decades joined by +, e.g. "
                              "fitbend_1+0.5+0.25, or fitbend_none") from None
         return o.with_(measurement_fit_bending=steps)
-    if variant.startswith("fitrefit"):   # the search's candidates re-fitted at their bending, judged on K fresh drapes (@K)
-        spec, _, k = variant.partition("@")   # fitrefit_M: the checks' candidates judged as bendcompare_M; fitrefit_none: no checks' candidates
-        try:
-            k = int(k) if k else o.bending_fresh_drapes
-        except ValueError:
-            raise ValueError(f"variant {variant!r}: fitrefit@K needs a whole number K of fresh drapes, e.g. fitrefit@3") from None
+    if variant == "fitrefit" or variant.startswith(("fitrefit@", "fitrefit_")):   # the search's candidates re-fitted
+        spec, k = _fresh_drapes_suffix(variant, o)   # fitrefit_M: the checks' candidates judged as bendcompare_M; _none: none
         o = o.with_(measurement_fit_refit=True, bending_fresh_drapes=k)
-        checks = spec[len("fitrefit_"):] if spec.startswith("fitrefit_") else ""
+        checks = spec[len("fitrefit_"):]
         if checks == "none":
             return o.with_(bending_candidates=[])
         return o.with_(bending_compare=checks) if checks else o
-    if variant.startswith("bendcompare_"):   # the drapes a bending candidate is judged on: guided | unguided | asymmetric, @K fresh drapes
-        mode, _, k = variant[len("bendcompare_"):].partition("@")
-        try:
-            k = int(k) if k else o.bending_fresh_drapes
-        except ValueError:
-            raise ValueError(f"variant {variant!r}: bendcompare_M@K needs a whole number K of fresh drapes, "
-                             "e.g. bendcompare_unguided@3") from None
-        return o.with_(bending_compare=mode, bending_fresh_drapes=k)
+    if variant.startswith("bendcompare_"):   # the drapes a bending candidate is judged on: guided | unguided | asymmetric | fresh
+        spec, k = _fresh_drapes_suffix(variant, o)
+        return o.with_(bending_compare=spec[len("bendcompare_"):], bending_fresh_drapes=k)
     if variant.startswith("workers_"):   # bending candidates draped at once (candidate_workers): the same results, other times
         try:
             return o.with_(candidate_workers=int(variant[len("workers_"):]))
