@@ -17,11 +17,19 @@ def merge_duplicate_vertices(V: np.ndarray, F: np.ndarray, tol: float) -> tuple[
     group at its own position. V: (N, 3); F: (M, 3). Returns (V' (N', 3), F' (M, 3) remapped,
     old_to_new (N,)), N' ≤ N, survivors in input order."""
     n = V.shape[0]
-    pairs = cKDTree(V).query_pairs(tol, output_type="ndarray") if tol > 0 else np.zeros((0, 2), int)
-    if len(pairs) == 0:
+    if tol <= 0 or n == 0:
         return V, F, np.arange(n)
-    G = sp.coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
-    _, comp = connected_components(G, directed=False)
+    # Exact duplicates first (n log n): query_pairs lists every pair of coincident points, so a
+    # scan with many vertices at one point (a broken export writing zeros) would take n²/2 pairs.
+    _, first, inverse = np.unique(V, axis=0, return_index=True, return_inverse=True)
+    inverse = inverse.reshape(-1)
+    m = len(first)
+    pairs = cKDTree(V[first]).query_pairs(tol, output_type="ndarray")
+    if len(pairs) == 0 and m == n:
+        return V, F, np.arange(n)
+    G = sp.coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(m, m))
+    _, comp_unique = connected_components(G, directed=False)
+    comp = comp_unique[inverse]
     rep = np.full(comp.max() + 1, n, dtype=np.int64)
     np.minimum.at(rep, comp, np.arange(n))      # lowest index of each group
     keep = np.zeros(n, bool)
