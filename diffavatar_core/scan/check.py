@@ -217,7 +217,8 @@ def _raw_scan(scan, max_vertices):
             raise TooLargeError(f"vertices: {n} vertices exceed the limit of {max_vertices}")
     if isinstance(scan, RawScan):
         limit(len(scan.vertices))
-        return scan, {}
+        # a RawScan may be made by hand: checked as arrays are (O(V + F))
+        return scan_from_arrays(scan.vertices, scan.faces, scan.labels, scan.label_names, scan.source), {}
     if isinstance(scan, (str, pathlib.Path)):
         raw = read_scan_file(scan)
         limit(len(raw.vertices))

@@ -39,7 +39,8 @@ class EmptyScanError(ScanError):
 
 
 class NonFiniteError(ScanError):
-    """Some vertex coordinates are NaN or Inf."""
+    """Some vertex coordinates are NaN or Inf, or of a magnitude no scan has (≥ 1e100 scan
+    units: garbage, whose squared distances would overflow)."""
     code = "NON_FINITE"
 
 

@@ -2,6 +2,7 @@
 names, which classes are garments and which openings each garment class has."""
 from __future__ import annotations
 
+import numbers
 import pathlib
 from dataclasses import dataclass, field
 
@@ -103,7 +104,7 @@ class LabelMap:
 
     def value_of(self, label: str | int) -> int:
         """Label value of a class name or of an integer (given as int or numeric string)."""
-        if isinstance(label, (int,)) or (isinstance(label, str) and label.strip().isdigit()):
+        if isinstance(label, numbers.Integral) or (isinstance(label, str) and label.strip().isdigit()):
             return int(label)
         for k, v in self.classes.items():
             if v == label:

@@ -14,6 +14,9 @@ from .errors import (EmptyScanError, FaceIndexError, LabelError, NonFiniteError,
 
 #: PLY vertex properties read as the per-vertex label, first match wins.
 LABEL_PROPERTIES = ("label", "labels")
+#: Scan units; a coordinate this large is garbage (a binary file read with the wrong layout), and
+#: the squared distances of cleaning would overflow.
+MAX_COORDINATE = 1e100
 
 
 @dataclass(frozen=True)
@@ -66,15 +69,20 @@ def scan_from_arrays(vertices, faces, labels=None, label_names=None, source: str
     if bad.any():
         raise NonFiniteError(f"{source}: {int(bad.sum())} vertex/vertices have NaN or Inf "
                              f"coordinates (first: vertex {int(np.flatnonzero(bad)[0])})")
+    huge = (np.abs(V) >= MAX_COORDINATE).any(axis=1)
+    if huge.any():
+        raise NonFiniteError(f"{source}: {int(huge.sum())} vertex/vertices have coordinates of magnitude "
+                             f"≥ {MAX_COORDINATE:g} (first: vertex {int(np.flatnonzero(huge)[0])}): garbage, "
+                             f"not a scan (a binary file read with the wrong layout?)")
     if not np.issubdtype(F.dtype, np.integer):
         if not np.issubdtype(F.dtype, np.floating) or not np.all(np.isfinite(F)) or np.any(np.mod(F, 1) != 0):
             raise FaceIndexError(f"{source}: face indices must be integers, got dtype {F.dtype}")
-    F = np.ascontiguousarray(F, dtype=np.int64)
-    out = (F < 0) | (F >= V.shape[0])
+    out = (F < 0) | (F >= V.shape[0])   # before the cast, which would wrap a huge index
     if out.any():
         row = int(np.flatnonzero(out.any(axis=1))[0])
         raise FaceIndexError(f"{source}: {int(out.any(axis=1).sum())} face(s) index vertices outside "
                              f"[0, {V.shape[0]}) (first: face {row} = {F[row].tolist()})")
+    F = np.ascontiguousarray(F, dtype=np.int64)
     L = None
     if labels is not None:
         La = np.asarray(labels)
@@ -89,6 +97,9 @@ def scan_from_arrays(vertices, faces, labels=None, label_names=None, source: str
                         or np.any(np.mod(La, 1) != 0):
                     raise LabelError(f"{source}: labels must be integers, got dtype {La.dtype}")
             L = np.ascontiguousarray(La, dtype=np.int64)
+    if isinstance(label_names, (str, bytes)):   # would be read as one name per character
+        raise LabelError(f"{source}: label_names must be a list of class names (label value k → "
+                         f"label_names[k]), got the string {label_names!r}")
     names = tuple(str(n) for n in label_names) if label_names else None
     if L is not None and names is not None:
         lo, hi = int(L.min()), int(L.max())
@@ -162,6 +173,9 @@ def read_scan_file(path: str | pathlib.Path) -> RawScan:
 def scan_from_message(arrays: dict) -> RawScan:
     """A RawScan from diffavatar_ros.convert.msg_to_arrays(msg): flat float32 vertices, flat
     uint32 faces, uint8 labels (empty: garment-only) and label_names (empty: the label map)."""
+    for key, err in (("vertices", VertexArrayError), ("faces", FaceIndexError)):
+        if arrays.get(key) is None:
+            raise err(f"message: no '{key}' array")
     return scan_from_arrays(arrays["vertices"], arrays["faces"], arrays.get("labels"),
                             arrays.get("label_names") or None,
                             source=f"message {arrays.get('job_id') or ''}".strip())

@@ -43,3 +43,63 @@ def test_coincident_vertices_merge_in_n_log_n():
     np.testing.assert_array_equal(Fm, [[0, 1, 0]])
     _refused(sv.DegenerateScanError, "IMPLAUSIBLE_SIZE", "degenerate",
              call=lambda: sv.load_scan((np.ones((n, 3)), np.arange(n).reshape(-1, 3)), garment_type="skirt"))
+
+
+def test_coordinates_too_large_to_compute_with():
+    """A vertex at 1e300 (what a binary file read with the wrong layout gives) overflowed the
+    squared distances of cleaning: scipy's KD-tree raised its own ValueError."""
+    V, F = _tube()
+    far = np.vstack([V, [[1e300, 0.0, 0.0]]])                  # not even used by a triangle
+    msg = _refused(sv.NonFiniteError, "NON_FINITE", "magnitude", "vertex 240",
+                   call=lambda: sv.load_scan((far, F), garment_type="skirt"))
+    assert "NaN" not in msg
+
+
+@pytest.mark.parametrize("dtype,index,shown", [(np.float64, 1e20, "1e+20"),
+                                              (np.uint64, 2 ** 64 - 1, "18446744073709551615")])
+def test_a_huge_face_index_is_named_as_given(dtype, index, shown):
+    """The cast to int64 wrapped the index (shown as -1 or -9223372036854775808) before it was
+    reported."""
+    V, F = _tube()
+    F = F.astype(dtype)
+    F[3, 1] = index
+    _refused(sv.FaceIndexError, "BAD_FACE_INDEX", "outside [0, 240)", "face 3", shown,
+             call=lambda: sv.load_scan((V, F), garment_type="skirt"))
+
+
+def _message(**kw):
+    V, F = _tube()
+    msg = {"vertices": V.ravel().astype(np.float32), "faces": F.ravel().astype(np.uint32),
+           "labels": np.full(len(V), 1, np.uint8), "label_names": ["body", "skirt"], "units": "m", "up_axis": "y"}
+    msg.update(kw)
+    return {k: v for k, v in msg.items() if v is not None}
+
+
+def test_message_fields_missing_or_of_the_wrong_kind():
+    """A message dict without vertices or faces raised KeyError; label_names given as one string
+    were read one name per character ('b', 'o', ...), naming letters as unknown classes."""
+    assert sv.load_scan(_message()).garment_class == "skirt"
+    _refused(sv.VertexArrayError, "BAD_VERTEX_ARRAY", "no 'vertices'", call=lambda: sv.load_scan(_message(vertices=None)))
+    _refused(sv.FaceIndexError, "BAD_FACE_INDEX", "no 'faces'", call=lambda: sv.check_scan(_message(faces=None)))
+    _refused(sv.LabelError, "BAD_LABELS", "list of class names", "'body,skirt'",
+             call=lambda: sv.check_scan(_message(label_names="body,skirt")))
+
+
+def test_a_raw_scan_made_by_hand_is_checked_like_arrays():
+    """A RawScan given to load_scan was trusted: NaN reached the KD-tree (scipy's ValueError), a
+    face index past the end an IndexError."""
+    V, F = _tube()
+    Vn = V.copy()
+    Vn[5, 1] = np.nan
+    _refused(sv.NonFiniteError, "NON_FINITE", "vertex 5",
+             call=lambda: sv.load_scan(sv.RawScan(Vn, F), garment_type="skirt"))
+    Fb = F.copy()
+    Fb[7, 2] = 10 ** 6
+    _refused(sv.FaceIndexError, "BAD_FACE_INDEX", "face 7",
+             call=lambda: sv.load_scan(sv.RawScan(V, Fb), garment_type="skirt"))
+
+
+def test_a_numpy_integer_label_is_a_label_value():
+    """label=np.int64(1) was refused as "label '1' is not in the label map" by a map that has 1."""
+    a = sv.load_scan(_message(), label=np.int64(1))
+    assert a.garment_label == 1 and a.garment_label == sv.load_scan(_message(), label=1).garment_label
