@@ -124,26 +124,39 @@ def _ply_labels(mesh) -> np.ndarray | None:
 def read_obj(path: pathlib.Path) -> tuple[np.ndarray, np.ndarray]:
     """(V (N, 3), F (M, 3)) of a Wavefront OBJ as stored: `v` lines in order, `f` polygons
     (v, v/vt, v//vn, v/vt/vn; negative = relative) fan-triangulated, everything else ignored.
-    Indices are checked by the caller (an out-of-range index is reported, not fixed)."""
+    Index 0 and a relative index before the first vertex raise FaceIndexError naming the line;
+    other indices are checked by the caller (an out-of-range index is reported, not fixed)."""
     verts, faces = [], []
-    with open(path, encoding="utf-8", errors="replace") as fh:
+    try:
+        fh = open(path, encoding="utf-8", errors="replace")
+    except OSError as exc:
+        raise ScanFormatError(f"{path}: cannot be read ({exc.strerror or exc})") from None
+    with fh:
         for ln, line in enumerate(fh, 1):
-            if line.startswith("v "):
-                parts = line.split()
+            parts = line.split()   # any whitespace separates (tabs, indented lines)
+            if parts and parts[0] == "v":
                 if len(parts) < 4:
                     raise ScanFormatError(f"{path}:{ln}: a vertex needs 3 coordinates: {line.strip()!r}")
                 try:
                     verts.append((float(parts[1]), float(parts[2]), float(parts[3])))
                 except ValueError:
                     raise ScanFormatError(f"{path}:{ln}: not a number in {line.strip()!r}") from None
-            elif line.startswith("f "):
+            elif parts and parts[0] == "f":
                 try:
-                    idx = [int(tok.split("/")[0]) for tok in line.split()[1:]]
+                    idx = [int(tok.split("/")[0]) for tok in parts[1:]]
                 except ValueError:
                     raise ScanFormatError(f"{path}:{ln}: bad face {line.strip()!r}") from None
                 if len(idx) < 3:
                     raise ScanFormatError(f"{path}:{ln}: a face needs 3 or more vertices: {line.strip()!r}")
                 n = len(verts)
+                # 0 is no OBJ index, nor a relative one before the first vertex: reported with the
+                # line as written (converted, it would name another index); a positive index past
+                # the end is the caller's (a later `v` line may define it)
+                bad = [i for i in idx if i == 0 or i < -n or i >= 2 ** 63]
+                if bad:
+                    raise FaceIndexError(f"{path}:{ln}: face vertex index {bad[0]} is invalid: OBJ indices "
+                                         f"start at 1, negative ones count back from the {n} vertices read "
+                                         f"so far: {line.strip()!r}")
                 idx = [i - 1 if i > 0 else n + i for i in idx]
                 faces.extend((idx[0], idx[k], idx[k + 1]) for k in range(1, len(idx) - 1))
     return (np.asarray(verts, np.float64).reshape(-1, 3), np.asarray(faces, np.int64).reshape(-1, 3))
@@ -157,6 +170,8 @@ def read_scan_file(path: str | pathlib.Path) -> RawScan:
     p = pathlib.Path(path)
     if not p.exists():
         raise FileNotFoundError(f"{p}: no such file")
+    if p.is_dir():
+        raise ScanFormatError(f"{p}: is a directory, not a mesh file")
     if p.suffix.lower() == ".obj":
         V, F = read_obj(p)
         return scan_from_arrays(V, F, None, None, source=str(p))

@@ -103,3 +103,40 @@ def test_a_numpy_integer_label_is_a_label_value():
     """label=np.int64(1) was refused as "label '1' is not in the label map" by a map that has 1."""
     a = sv.load_scan(_message(), label=np.int64(1))
     assert a.garment_label == 1 and a.garment_label == sv.load_scan(_message(), label=1).garment_label
+
+
+def _obj_text(V, F, sep=" ", indent=""):
+    return ("".join(f"{indent}v{sep}{sep.join(map(repr, map(float, v)))}\n" for v in V)
+            + "".join(f"{indent}f{sep}{sep.join(str(i + 1) for i in f)}\n" for f in F))
+
+
+@pytest.mark.parametrize("sep,indent", [("\t", ""), (" ", "  "), (" \t ", "\t")])
+def test_obj_lines_separated_by_any_whitespace(tmp_path, sep, indent):
+    """`v\\t...` and indented lines were skipped without a word: "the scan has no vertices", or
+    faces pointing past the vertices that were kept."""
+    V, F = _tube()
+    p = tmp_path / "tabs.obj"
+    p.write_text(_obj_text(V, F, sep, indent))
+    raw = sv.read_scan_file(p)
+    np.testing.assert_array_equal(raw.vertices, V)
+    np.testing.assert_array_equal(raw.faces, F)
+
+
+@pytest.mark.parametrize("face,index", [("f 0 1 2", "index 0 "), ("f 1 2 -4", "index -4 "),
+                                        ("f 1 2 99999999999999999999999", "index 99999999999999999999999 "),
+                                        ("f 1 -99999999999999999999999 2", "index -99999999999999999999999 ")])
+def test_obj_face_indices_that_name_no_vertex(tmp_path, face, index):
+    """OBJ index 0 (indices start at 1) was reported converted, as vertex 3 of 3; a relative index
+    before the first vertex as -1; a 23-digit index raised OverflowError. Now the line as written."""
+    p = tmp_path / "bad.obj"
+    p.write_text(f"v 0 0 0\nv 1 0 0\nv 0 1 0\n{face}\n")
+    _refused(sv.FaceIndexError, "BAD_FACE_INDEX", "bad.obj:4:", index, "start at 1", repr(face),
+             call=lambda: sv.read_scan_file(p))
+
+
+def test_a_directory_is_no_scan(tmp_path):
+    """A directory named *.obj raised IsADirectoryError (an OSError the CLI does not catch)."""
+    for name in ("scan.obj", "scan.ply"):
+        (tmp_path / name).mkdir()
+        _refused(sv.ScanFormatError, "BAD_VERTEX_ARRAY", "is a directory",
+                 call=lambda: sv.load_scan(tmp_path / name, garment_type="skirt"))
