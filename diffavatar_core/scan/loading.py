@@ -181,8 +181,57 @@ def read_scan_file(path: str | pathlib.Path) -> RawScan:
         raise ScanFormatError(f"{p}: cannot be read as a triangle mesh ({type(exc).__name__}: {exc})") from None
     V = np.asarray(getattr(m, "vertices", np.zeros((0, 3))))
     F = np.asarray(getattr(m, "faces", np.zeros((0, 3), np.int64)))
-    labels = _ply_labels(m) if p.suffix.lower() == ".ply" else None
+    labels = None
+    if p.suffix.lower() == ".ply":
+        _check_ply_counts(p, len(V), len(F))
+        labels = _ply_labels(m)
     return scan_from_arrays(V, F, labels, None, source=str(p))
+
+
+def _ply_header(path: pathlib.Path) -> tuple[str, dict[str, int], int] | None:
+    """(format, {element name: count}, offset of the body) of a PLY file, or None if there is
+    no readable header."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(1 << 16)
+    except OSError:
+        return None
+    end = head.find(b"end_header")
+    if not head.startswith(b"ply") or end < 0:
+        return None
+    fmt, counts = "", {}
+    for line in head[:end].decode("latin-1").splitlines():
+        parts = line.split()
+        if len(parts) >= 2 and parts[0] == "format":
+            fmt = parts[1]
+        if len(parts) == 3 and parts[0] == "element" and parts[2].isdigit():
+            counts[parts[1]] = int(parts[2])
+    return fmt, counts, head.index(b"\n", end) + 1 if b"\n" in head[end:] else len(head)
+
+
+def _check_ply_counts(path: pathlib.Path, n_read: int, f_read: int) -> None:
+    """What trimesh read against what the header declares: a point cloud, or a truncated file
+    or a header that does not match its data. trimesh reads such an ascii file without an error
+    but with some of the vertices and no faces, or with faces made of misaligned numbers; an
+    ascii body has one line per element."""
+    header = _ply_header(path)
+    if header is None:
+        return
+    fmt, counts, body_at = header
+    nv, nf = counts.get("vertex", 0), counts.get("face", 0)
+    if nv and not nf:
+        raise EmptyScanError(f"{path}: the scan has no triangles: the header declares {nv} vertices and no "
+                             f"faces (a point cloud?)")
+    lines = None
+    if fmt == "ascii":
+        with open(path, "rb") as fh:
+            fh.seek(body_at)
+            lines = sum(1 for line in fh if line.strip())
+    if n_read != nv or (nf and not f_read) or (lines is not None and lines != sum(counts.values())):
+        body = f" in {lines} lines" if lines is not None else ""
+        raise ScanFormatError(f"{path}: the header declares {nv} vertices and {nf} faces, but {n_read} vertices "
+                              f"and {f_read} triangles were read{body}: the file is truncated or its header does "
+                              f"not match its data")
 
 
 def scan_from_message(arrays: dict) -> RawScan:

@@ -140,3 +140,40 @@ def test_a_directory_is_no_scan(tmp_path):
         (tmp_path / name).mkdir()
         _refused(sv.ScanFormatError, "BAD_VERTEX_ARRAY", "is a directory",
                  call=lambda: sv.load_scan(tmp_path / name, garment_type="skirt"))
+
+
+def _ply_bytes(V, F, declared_vertices=None, faces=True):
+    head = ["ply", "format ascii 1.0", f"element vertex {len(V) if declared_vertices is None else declared_vertices}",
+            "property double x", "property double y", "property double z"]
+    if faces:
+        head += [f"element face {len(F)}", "property list uchar int vertex_indices"]
+    body = [" ".join(map(repr, map(float, v))) for v in V] + ([f"3 {a} {b} {c}" for a, b, c in F] if faces else [])
+    return ("\n".join(head + ["end_header"] + body) + "\n").encode()
+
+
+def test_ply_whose_header_does_not_match_its_data(tmp_path):
+    """trimesh reads such an ascii PLY without an error but with no faces (or the face lines as
+    vertices): "the scan has no triangles (692 vertices)" for a file that declares 444 faces."""
+    V, F = _tube()
+    p = tmp_path / "scan.ply"
+    p.write_bytes(_ply_bytes(V, F))
+    assert len(sv.read_scan_file(p).faces) == len(F)
+    cases = {"header only": _ply_bytes(V, F).split(b"end_header\n")[0] + b"end_header\n",
+             "truncated": _ply_bytes(V, F)[:-len(_ply_bytes(V, F)) // 3],
+             "more declared": _ply_bytes(V, F, declared_vertices=10 ** 12),
+             "fewer declared": _ply_bytes(V, F, declared_vertices=len(V) - 5)}
+    for what, data in cases.items():
+        p.write_bytes(data)
+        with pytest.raises(sv.ScanError) as info:
+            sv.load_scan(p, garment_type="skirt")
+        assert type(info.value) is sv.ScanFormatError and info.value.code == "BAD_VERTEX_ARRAY", what
+        assert "header" in str(info.value) or "cannot be read" in str(info.value), (what, str(info.value))
+
+
+def test_a_ply_point_cloud_has_vertices_but_no_triangles(tmp_path):
+    """Was "the scan has no vertices" for a file of 240 vertices."""
+    V, F = _tube()
+    p = tmp_path / "cloud.ply"
+    p.write_bytes(_ply_bytes(V, F, faces=False))
+    _refused(sv.EmptyScanError, "EMPTY_MESH", "no triangles", "240 vertices", "point cloud",
+             call=lambda: sv.load_scan(p, garment_type="skirt"))
