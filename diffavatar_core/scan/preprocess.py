@@ -255,7 +255,17 @@ def preprocess_checked(checked: CheckedScan) -> ScanData:
         cls, value = checked.garment_class, None
         gface = np.ones(len(F), bool)
     else:
-        value, cls, _ = choose_garment(labels, lmap, label, garment_type)
+        try:
+            value, cls, _ = choose_garment(labels, lmap, label, garment_type)
+        except NoGarmentError:
+            given = np.unique(raw.labels[checked.garment_mask])
+            if len(given) and not np.isin(given, labels).any():
+                # check_scan found the garment label: cleaning removed it, say so (not "no vertex")
+                names = ", ".join(f"'{lmap.name_of(v)}' ({int(v)})" for v in given)
+                raise NoGarmentError(f"{raw.source}: cleaning removed all {int(checked.garment_mask.sum())} vertices "
+                                     f"labelled {names}: the garment region is degenerate or a small floating "
+                                     f"fragment ({'; '.join(warnings)})") from None
+            raise
         gface = (labels[F] == value).all(axis=1)
         if not gface.any():
             raise NoGarmentError(f"{raw.source}: {int(np.count_nonzero(labels == value))} vertices carry "

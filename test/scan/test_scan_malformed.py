@@ -177,3 +177,30 @@ def test_a_ply_point_cloud_has_vertices_but_no_triangles(tmp_path):
     p.write_bytes(_ply_bytes(V, F, faces=False))
     _refused(sv.EmptyScanError, "EMPTY_MESH", "no triangles", "240 vertices", "point cloud",
              call=lambda: sv.load_scan(p, garment_type="skirt"))
+
+
+def _body_and(Vg, Fg, label=3):
+    """A 1.7 m box 'body' (label 0) with a garment part (label `label`), m."""
+    import trimesh
+    box = trimesh.creation.box(extents=(0.25, 1.7, 0.15))
+    Vb, Fb = np.asarray(box.vertices) + [0, 0.85, 0], np.asarray(box.faces)
+    return (np.vstack([Vb, Vg]), np.vstack([Fb, Fg + len(Vb)]),
+            np.r_[np.zeros(len(Vb), int), np.full(len(Vg), label)])
+
+
+def test_a_garment_that_cleaning_removes_is_named():
+    """The garment label present in the scan but only on a tiny floating part, or only on
+    degenerate triangles: cleaning removes it, and the error said "no vertex carries a garment
+    label" of a scan whose 240 vertices carry one."""
+    V, F = _tube(r=0.01, y0=1.0, y1=1.02)                        # a 12 cm² fragment beside the body
+    scan = _body_and(V + [0.5, 0, 0], F)
+    assert sv.check_scan(scan).garment_label == 3               # the front door sees the label
+    msg = _refused(sv.NoGarmentError, "NO_GARMENT", "cleaning removed all 240 vertices", "'skirt' (3)",
+                   "floating fragment", call=lambda: sv.load_scan(scan))
+    assert "no vertex carries" not in msg
+    V, F = _tube()
+    F = F.copy()
+    F[:, 2] = F[:, 1]                                            # every garment triangle degenerate
+    msg = _refused(sv.NoGarmentError, "NO_GARMENT", "cleaning removed all", "degenerate",
+                   call=lambda: sv.load_scan(_body_and(V, F)))
+    assert "no vertex carries" not in msg
