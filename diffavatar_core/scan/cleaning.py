@@ -11,23 +11,33 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
+#: Nearest distinct neighbours of a vertex looked at for merging (more within the tolerance only
+#: in a collapsed cluster).
+MERGE_NEIGHBOURS = 16
+
 
 def merge_duplicate_vertices(V: np.ndarray, F: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Merges vertices closer than tol (transitively), keeping the lowest-index vertex of each
-    group at its own position. V: (N, 3); F: (M, 3). Returns (V' (N', 3), F' (M, 3) remapped,
-    old_to_new (N,)), N' ≤ N, survivors in input order."""
+    """Merges vertices closer than tol (transitively; a vertex with more than MERGE_NEIGHBOURS
+    distinct points that close is joined to the nearest of them), keeping the lowest-index
+    vertex of each group at its own position; O(N log N). V: (N, 3); F: (M, 3). Returns
+    (V' (N', 3), F' (M, 3) remapped, old_to_new (N,)), N' ≤ N, survivors in input order."""
     n = V.shape[0]
     if tol <= 0 or n == 0:
         return V, F, np.arange(n)
-    # Exact duplicates first (n log n): query_pairs lists every pair of coincident points, so a
-    # scan with many vertices at one point (a broken export writing zeros) would take n²/2 pairs.
+    # Exact duplicates first (n log n), then, among the distinct points, each one's pairs within
+    # tol from its MERGE_NEIGHBOURS nearest: all its pairs unless more points crowd within tol (a
+    # collapsed cluster; what is left of it makes degenerate triangles, which cleaning drops).
+    # query_pairs lists every pair: n²/2 of them for n vertices at one point (a hang).
     _, first, inverse = np.unique(V, axis=0, return_index=True, return_inverse=True)
     inverse = inverse.reshape(-1)
     m = len(first)
-    pairs = cKDTree(V[first]).query_pairs(tol, output_type="ndarray")
-    if len(pairs) == 0 and m == n:
+    k = min(MERGE_NEIGHBOURS, m)
+    d, j = cKDTree(V[first]).query(V[first], k=k, distance_upper_bound=tol)
+    d, j = d.reshape(m, k), j.reshape(m, k)
+    near = np.isfinite(d) & (j != np.arange(m)[:, None])
+    if not near.any() and m == n:
         return V, F, np.arange(n)
-    G = sp.coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(m, m))
+    G = sp.coo_matrix((np.ones(int(near.sum())), (np.nonzero(near)[0], j[near])), shape=(m, m))
     _, comp_unique = connected_components(G, directed=False)
     comp = comp_unique[inverse]
     rep = np.full(comp.max() + 1, n, dtype=np.int64)

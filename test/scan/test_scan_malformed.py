@@ -204,3 +204,15 @@ def test_a_garment_that_cleaning_removes_is_named():
     msg = _refused(sv.NoGarmentError, "NO_GARMENT", "cleaning removed all", "degenerate",
                    call=lambda: sv.load_scan(_body_and(V, F)))
     assert "no vertex carries" not in msg
+
+
+def test_a_collapsed_cluster_of_distinct_vertices_is_refused_quickly():
+    """20 000 distinct vertices within 1e-8 m of a point (a scan collapsed by a wrong scale):
+    every pair of them is closer than the merge tolerance, which ran out of memory."""
+    V = np.random.default_rng(0).normal(0.0, 1e-8, (20001, 3))
+    t = time.perf_counter()
+    _refused(sv.ScanError, "IMPLAUSIBLE_SIZE", call=lambda: sv.load_scan((V, np.arange(len(V)).reshape(-1, 3)),
+                                                                        garment_type="skirt"))
+    assert time.perf_counter() - t < 10.0
+    Vm, _, old_to_new = merge_duplicate_vertices(V, np.zeros((0, 3), int), 1e-6)
+    assert len(Vm) < len(V) // 10 and old_to_new.max() == len(Vm) - 1
