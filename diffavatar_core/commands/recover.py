@@ -79,7 +79,9 @@ def _run(args) -> int:
         "iterations": result.iterations, "stopped": m.get("stopped"), "wall_s": round(result.wall_s, 1),
         "garment_vertices": len(result.garment_vertices),
         "chamfer_initial_cm": round(m["chamfer_initial_cm"], 3), "chamfer_final_cm": round(m["chamfer_final_cm"], 3),
-        "bending_stiffness_Nm": result.material.bending_stiffness, "mesh_quality_min": round(m["mesh_quality_min"], 3),
+        "bending_stiffness_Nm": result.material.bending_stiffness,
+        "bending_stiffness_range_Nm": list(result.material.bending_stiffness_range),   # null: open on that side
+        "mesh_quality_min": round(m["mesh_quality_min"], 3),
         "seam_length_mismatch_max_pct": round(m["seam_length_mismatch_max_pct"], 3), "ssim": m.get("ssim"),
         "template_sized_m": {n: round(v, 4) for n, v in (sizing.get("measurements_m") or {}).items()} if sizing.get("kept") else {},
         "template_measurements_m": {n: round(v, 4) for n, v in zip(fit.get("names", []), fit.get("fitted_m", []))},

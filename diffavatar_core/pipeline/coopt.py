@@ -32,6 +32,7 @@ from ..lbfgs import minimize_lbfgs
 from ..optim import minimize
 from ..pattern.regularizers import CurvatureRegularizer, SeamLengthRegularizer
 from ..pattern.sobolev import SobolevMetric
+from .bending_range import bending_range
 from .candidate_workers import run_on_twins, worker_count
 from .guided_drape import guided_equilibrium
 from .measurement_fit import fit_measurements
@@ -61,6 +62,7 @@ class CoOptResult:
     initial_kept: int = 0        # re-drapes from the template's initial drape (try_initial) that became the warm start
     bending_kept: int = 0        # bending candidates (try_bending) that became the iterate and its warm start
     bending_search: dict | None = None  # the bending searched after the first measurement fit (search_bending), or None
+    bending_range: dict | None = None   # the bendings judged alike the recovered one (bending_range.py), or None
 
 
 def seam_mismatch_pct(g, rest) -> float:
@@ -604,12 +606,13 @@ def co_optimize(cloth, garment, scan_points, scan_loops: dict, opts: RecoverOpti
     the rest held), then the bending is searched at the fitted outline (opts.measurement_fit_bending,
     search_bending) and, when it moved, the measurements fitted again from there; the handles start
     on the fitted outline. The fits' iterations come first in the history, marked stage
-    'measurements'."""
+    'measurements'. At the end, the bendings judged alike the returned one (bending_range.py,
+    opts.bending_range_offsets; on a twin, nothing returned changes)."""
     obj = CoOptObjective(cloth, garment, scan_points, scan_loops, opts, cage, body_model, body_params, cancel,
                          body_points, scan_mesh)
     params = obj.initial_params()
     history, fit, base, stop_reason, initial_used, bending_used = [], None, 0, "", [], []
-    searched = None
+    searched, brange = None, None
     if opts.iterations and opts.measurement_fit_iterations and measurement_map is not None:
         def report_fit(h, offset=0):
             history.append({**h, "iteration": h["iteration"] + offset, "stage": "measurements"})
@@ -732,6 +735,8 @@ def co_optimize(cloth, garment, scan_points, scan_loops: dict, opts: RecoverOpti
             guided_used.append(obj.try_guided(best))
             best, b = obj.try_bending(best)
             bending_used.append(b)
+            if not cancelled():   # on a twin: the returned drape and parameters are the same without it
+                brange = bending_range(obj, best, opts.bending_range_offsets, opts.bending_margin)
         kept, gkept = int(sum(fresh_used)), int(sum(guided_used))
     rest, bend, bp = obj.unpack(best)
     bv = body_model.pose(bp) if obj.use_body else None
@@ -744,4 +749,4 @@ def co_optimize(cloth, garment, scan_points, scan_loops: dict, opts: RecoverOpti
     return CoOptResult(rest, bend, bp if obj.use_body else body_params, bv, np.array(cloth.x), history, it, rej,
                        stopped, kept, gkept, fit, np.asarray(cloth.control.stretch_compliance).reshape(-1, 3).copy(),
                        stop_reason, initial_kept=int(sum(initial_used)), bending_kept=int(sum(bending_used)),
-                       bending_search=searched)
+                       bending_search=searched, bending_range=brange)

@@ -82,6 +82,7 @@ class RecoverOptions:
     guided_capture: float = 0.03
     bending_candidates: tuple = (1.0, -1.0)   # decades: log10 offsets of the bending tried at every check (CoOptObjective.try_bending)
     bending_margin: float = 0.02     # a bending candidate is kept when φ is lower by more than this fraction
+    bending_range_offsets: tuple = (0.15, 0.5, 1.0)   # decades: ± offsets the recovered bending's range is judged at (bending_range.py); () none
     bending_compare: str = "guided"   # the drapes a bending candidate is judged on (CoOptObjective.try_bending): BENDING_COMPARE
     bending_fresh_drapes: int = 1   # fresh drapes per bending an unguided judging takes the lowest φ of (CoOptObjective.fresh_min)
     candidate_workers: int = 0   # bending candidates draped at once, in threads (candidate_workers.py); 0: one per CPU of the process
@@ -131,6 +132,8 @@ class RecoverOptions:
             object.__setattr__(self, name, tuple(float(d) for d in seq))
         decades("bending_candidates", lambda d: d != 0 and abs(d) <= 3,
                 "must be a list of non-zero offsets in decades, each within ±3")
+        decades("bending_range_offsets", lambda d: 0 < d <= 3,
+                "must be a list of offsets in decades, each in (0, 3] (each tried as ±d)")
         decades("measurement_fit_bending", lambda d: 0 < d <= 3,
                 "must be a list of search steps in decades, each in (0, 3]")
         w = self.candidate_workers

@@ -47,6 +47,7 @@ def result_summary(r: RecoveryResult) -> dict:
         "template": r.template_name,
         "material": {"bending_stiffness_Nm": m.bending_stiffness,
                      "panel_bending_stiffness_Nm": m.panel_bending_stiffness,
+                     "bending_stiffness_range_Nm": list(m.bending_stiffness_range),
                      "compliance_warp_m_per_N": m.compliance_warp,
                      "compliance_weft_m_per_N": m.compliance_weft,
                      "compliance_shear_m_per_N": m.compliance_shear,

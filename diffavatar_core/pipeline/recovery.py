@@ -517,6 +517,7 @@ def _recover(scan, opts: RecoverOptions, ctl: "_Control", body_model, t0: float)
         "bending_candidates_kept": co.bending_kept,
         "measurement_fit": co.measurement_fit.to_json() if co.measurement_fit is not None else None,
         "measurement_fit_bending": co.bending_search,
+        "bending_range": co.bending_range,
         "optimized_vertices": int(len(g.rest)), "output_vertices": int(len(rest_out)),
         "output_drape": output_drape,
     }
@@ -542,7 +543,9 @@ def _recover(scan, opts: RecoverOptions, ctl: "_Control", body_model, t0: float)
                          panel_bending_stiffness=bend.copy() if opts.bending == "panel" else np.zeros(0),
                          compliance_warp=material.warp_compliance, compliance_weft=material.weft_compliance,
                          compliance_shear=material.shear_compliance, density=material.density,
-                         thickness=float(cloth.model.thickness), contact_normals=output_planes)
+                         thickness=float(cloth.model.thickness), contact_normals=output_planes,
+                         bending_stiffness_range=((co.bending_range["low_Nm"], co.bending_range["high_Nm"])
+                                                  if co.bending_range else (None, None)))
     result = RecoveryResult(
         garment_type=data.garment_type or data.garment_class, template_name=template_name,
         pattern=pattern_assets(g_final, handles_out), material=mat,

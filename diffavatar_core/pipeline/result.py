@@ -30,6 +30,9 @@ class MaterialAssets:
     density: float                  # kg/m²
     thickness: float                # m (collision thickness)
     contact_normals: str = "face"   # the cloth–body contact plane the drape is an equilibrium of (sim.cloth.CONTACT_NORMALS)
+    # N·m: the bendings judged alike bending_stiffness lie within (low, high); None: open on that side or not judged
+    # (pipeline/bending_range.py)
+    bending_stiffness_range: tuple = (None, None)
 
 
 @dataclass
