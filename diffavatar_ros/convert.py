@@ -121,6 +121,8 @@ def result_to_assets(job_id: str, result) -> "AvatarAssets":
     m = result.material
     msg.material.bending_stiffness = float(m.bending_stiffness)
     msg.material.panel_bending_stiffness = _f64(m.panel_bending_stiffness)
+    low, high = m.bending_stiffness_range   # None (open, not judged) → 0
+    msg.material.bending_stiffness_low, msg.material.bending_stiffness_high = float(low or 0.0), float(high or 0.0)
     msg.material.compliance_warp = float(m.compliance_warp)
     msg.material.compliance_weft = float(m.compliance_weft)
     msg.material.compliance_shear = float(m.compliance_shear)
@@ -218,7 +220,9 @@ def assets_to_result(msg, loss_history=()):
                                 panel_bending_stiffness=np.frombuffer(m.panel_bending_stiffness, np.float64),
                                 compliance_warp=m.compliance_warp, compliance_weft=m.compliance_weft,
                                 compliance_shear=m.compliance_shear, density=m.density, thickness=m.thickness,
-                                contact_normals=m.contact_normals or "face"),
+                                contact_normals=m.contact_normals or "face",
+                                bending_stiffness_range=(m.bending_stiffness_low or None,
+                                                         m.bending_stiffness_high or None)),
         body=BodyAssets(model_id=b.model_id, shape=a["shape"], joint_names=list(b.joint_names), pose=a["pose"],
                         bone_scales=np.frombuffer(b.bone_scales, np.float64),
                         global_transform=np.frombuffer(b.global_transform, np.float64)),

@@ -16,7 +16,7 @@ def example_result(seed=0):
                             panel_vertex_start=np.array([0, 12, 30]), panel_names=["front", "back"],
                             panel_grain_rad=np.array([0.0, 0.1]), seam_pairs=np.array([[0, 12], [1, 13]]),
                             handles=np.array([0, 3, 12, 20]))
-    material = MaterialAssets(2e-6, np.array([1e-6, 3e-6]), 1e-3, 2e-3, 5e-3, 0.15, 0.004, "valley")
+    material = MaterialAssets(2e-6, np.array([1e-6, 3e-6]), 1e-3, 2e-3, 5e-3, 0.15, 0.004, "valley", (None, 6.3e-6))
     body = BodyAssets("test-model", rng.normal(size=6), ["root", "spine"], rng.normal(size=(2, 3)),
                       np.ones(2), np.zeros(6))
     gv = rng.random((n, 3))
@@ -36,6 +36,7 @@ def test_written_files_round_trip(tmp_path):
     assert summary["metrics"]["chamfer_final_cm"] == 1.2 and summary["iterations"] == 2
     assert summary["material"]["bending_stiffness_Nm"] == 2e-6
     assert summary["material"]["contact_normals"] == "valley"
+    assert summary["material"]["bending_stiffness_range_Nm"] == [None, 6.3e-6]   # open below
     assert len(summary["loss_history"]) == 3
     draped = trimesh.load(out / "garment_draped.obj", process=False, maintain_order=True)
     np.testing.assert_allclose(draped.vertices, r.garment_vertices, atol=1e-8)
@@ -62,3 +63,5 @@ def test_ros_assets_round_trip():
     assert msg.material.contact_normals == "valley"
     back = assets_to_result(msg).material
     assert (back.contact_normals, back.thickness, back.compliance_weft) == ("valley", 0.004, 2e-3)
+    assert (msg.material.bending_stiffness_low, msg.material.bending_stiffness_high) == (0.0, 6.3e-6)
+    assert back.bending_stiffness_range == (None, 6.3e-6)
