@@ -215,6 +215,16 @@ def options_for(variant, iterations, output_edge=0.0, friction=None, contact_nor
     return o
 
 
+def bending_range_fields(bounds, truth: float) -> dict:
+    """The recovered bending's range (result.json material.bending_stiffness_range_Nm, N·m; None: open
+    on that side) against the truth: whether it holds the truth, and its width in decades (None when
+    open or not judged)."""
+    lo, hi = bounds
+    inside = (lo is None or lo < truth) and (hi is None or truth < hi)
+    width = math.log10(hi / lo) if lo is not None and hi is not None else None
+    return {"bending_range_n_m": [lo, hi], "bending_in_range": bool(inside), "bending_range_decades": width}
+
+
 def run_case(case, variant, iterations, output_edge=0.0, friction=None, contact_normals=None, paper_optimizer=False,
              truth_cm=float("nan")):
     """One recovery of `case`; truth_cm: the truth's own drape's Chamfer to the scan (the case's floor)."""
@@ -237,6 +247,7 @@ def run_case(case, variant, iterations, output_edge=0.0, friction=None, contact_
         "pattern_edge_error_cm": pattern_edge_error_cm(r.garment, case.garment, getattr(r, "template", None)),
         "bending_log10_error": abs(math.log10(r.material.bending_stiffness) - math.log10(case.bend_stiffness)),
         "bending_n_m": r.material.bending_stiffness, "bending_truth_n_m": case.bend_stiffness,
+        **bending_range_fields(r.material.bending_stiffness_range, case.bend_stiffness),
         "stretch_log10_error": stretch_log10_error(r.material, case),
         "body_vertex_error_cm": 100 * float(np.linalg.norm(r.body_vertices - case.body_vertices, axis=1).mean()),
         "mesh_quality_min": m["mesh_quality_min"], "seam_length_mismatch_max_pct": m["seam_length_mismatch_max_pct"],
@@ -333,6 +344,11 @@ def main():
             "garment_vertices")
     out["mean"] = {v: {k: float(np.nanmean([r[k] for r in rs])) if rs else float("nan") for k in keys}
                    for v, rs in per_variant.items()}
+    for v, rs in per_variant.items():   # the bending's range: how often it holds the truth, how wide when closed
+        widths = [r["bending_range_decades"] for r in rs if r["bending_range_decades"] is not None]
+        out["mean"][v].update(bending_in_range=sum(r["bending_in_range"] for r in rs), cases=len(rs),
+                              bending_range_closed=len(widths),
+                              bending_range_decades=float(np.mean(widths)) if widths else float("nan"))
     out["failed"] = failed
     out["targets"] = {"chamfer_ratio": "<= 0.35", "pattern_area_error_pct": "<= 3", "bending_log10_error": "<= 0.15",
                       "body_vertex_error_cm": "<= 1.5", "wall_s": "<= 300 for a ~10k-vertex garment"}
