@@ -12,8 +12,13 @@ import numpy as np
 from .errors import (EmptyScanError, FaceIndexError, LabelError, NonFiniteError,
                      ScanFormatError, VertexArrayError)
 
-#: PLY vertex properties read as the per-vertex label, first match wins.
+#: PLY vertex properties read as the per-vertex label, first match wins (any letter case).
 LABEL_PROPERTIES = ("label", "labels")
+#: PLY vertex property names other tools give a segmentation: without a `label`, such a scan is
+#: not read as garment-only (its body would become garment) but refused, naming the property.
+SEGMENTATION_PROPERTIES = ("class", "classes", "class_id", "label_id", "segment", "segments", "segment_id",
+                           "segmentation", "semantic", "semantics", "semantic_id", "part", "parts", "part_id",
+                           "category", "category_id", "seg")
 #: Scan units; a coordinate this large is garbage (a binary file read with the wrong layout), and
 #: the squared distances of cleaning would overflow.
 MAX_COORDINATE = 1e100
@@ -109,15 +114,26 @@ def scan_from_arrays(vertices, faces, labels=None, label_names=None, source: str
     return RawScan(V, F, L, names, source)
 
 
-def _ply_labels(mesh) -> np.ndarray | None:
+def _ply_labels(mesh, source: str) -> np.ndarray | None:
+    """The per-vertex labels of a PLY read by trimesh: its LABEL_PROPERTIES property, or None
+    (garment-only). LabelError when it has none but a property named as a segmentation is."""
     raw = (mesh.metadata or {}).get("_ply_raw", {}).get("vertex", {}).get("data")
     if raw is None:
         return None
+    if getattr(raw, "dtype", None) is not None and raw.dtype.names:
+        names = list(raw.dtype.names)
+    else:
+        names = list(getattr(raw, "keys", lambda: ())())
+    by_lower = {str(n).lower(): n for n in names}
     for prop in LABEL_PROPERTIES:
-        if prop in getattr(raw, "keys", lambda: ())():
-            return np.asarray(raw[prop]).reshape(-1)
-        if getattr(raw, "dtype", None) is not None and raw.dtype.names and prop in raw.dtype.names:
-            return np.asarray(raw[prop]).reshape(-1)
+        if prop in by_lower:
+            return np.asarray(raw[by_lower[prop]]).reshape(-1)
+    seg = [n for n in names if str(n).lower() in SEGMENTATION_PROPERTIES]
+    if seg:
+        raise LabelError(f"{source}: no per-vertex 'label' property, but one named {seg[0]!r}: if it holds the "
+                         f"segmentation, rename it 'label' (its values as config/labels.yaml names the classes); "
+                         f"if the scan is garment-only, remove it — read as garment-only, every vertex (a body "
+                         f"too) would be taken for the garment")
     return None
 
 
@@ -184,7 +200,7 @@ def read_scan_file(path: str | pathlib.Path) -> RawScan:
     labels = None
     if p.suffix.lower() == ".ply":
         _check_ply_counts(p, len(V), len(F))
-        labels = _ply_labels(m)
+        labels = _ply_labels(m, str(p))
     return scan_from_arrays(V, F, labels, None, source=str(p))
 
 

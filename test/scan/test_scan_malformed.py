@@ -216,3 +216,27 @@ def test_a_collapsed_cluster_of_distinct_vertices_is_refused_quickly():
     assert time.perf_counter() - t < 10.0
     Vm, _, old_to_new = merge_duplicate_vertices(V, np.zeros((0, 3), int), 1e-6)
     assert len(Vm) < len(V) // 10 and old_to_new.max() == len(Vm) - 1
+
+
+def _ply_with_property(V, F, name, values):
+    head = ["ply", "format ascii 1.0", f"element vertex {len(V)}", "property double x", "property double y",
+            "property double z", f"property uchar {name}", f"element face {len(F)}",
+            "property list uchar int vertex_indices", "end_header"]
+    body = [" ".join(map(repr, map(float, v))) + f" {int(k)}" for v, k in zip(V, values)]
+    body += [f"3 {a} {b} {c}" for a, b, c in F]
+    return ("\n".join(head + body) + "\n").encode()
+
+
+def test_a_segmentation_under_another_name_is_not_read_as_garment_only(tmp_path):
+    """A PLY whose labels are stored as `class` was read as garment-only: with a garment type given,
+    every vertex — the body too — became the garment. `Label` (another letter case) was missed so."""
+    V, F = _tube()
+    labels = np.where(V[:, 1] > 0.75, 3, 1)   # two classes over the tube
+    p = tmp_path / "scan.ply"
+    p.write_bytes(_ply_with_property(V, F, "class", labels))
+    _refused(sv.LabelError, sv.LabelError.code, "'class'", "rename it 'label'", "garment-only",
+             call=lambda: sv.load_scan(p, garment_type="skirt"))
+    p.write_bytes(_ply_with_property(V, F, "Label", labels))
+    np.testing.assert_array_equal(sv.read_scan_file(p).labels, labels)
+    p.write_bytes(_ply_with_property(V, F, "quality", labels))   # any other property: garment-only as before
+    assert sv.read_scan_file(p).labels is None
