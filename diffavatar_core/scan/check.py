@@ -172,13 +172,13 @@ def choose_garment(raw_labels: np.ndarray, lmap: LabelMap, label=None, garment_t
                                  f"choose one with label= / --label")
         value = garments[0]
         candidates = garments
+    name = f"'{lmap.name_of(value)}' ({value})" if value in lmap.classes else f"{value} (not in the label map)"
+    if not np.any(raw_labels == value):   # before its class: a label the scan lacks is the problem to name
+        raise NoGarmentError(f"no vertices with label {name} (vertices per label: {listing})")
     cls = type_class or lmap.garment_class(lmap.name_of(value))
     if cls is None:
-        raise LabelError(f"label '{lmap.name_of(value)}' ({value}) is not a garment class "
-                         f"({', '.join(lmap.garment_openings)}): give the garment type")
-    if not np.any(raw_labels == value):
-        raise NoGarmentError(f"no vertices with label '{lmap.name_of(value)}' ({value}) "
-                             f"(vertices per label: {listing})")
+        raise LabelError(f"label {name} is not a garment class ({', '.join(lmap.garment_openings)}): "
+                         f"give the garment type")
     return value, cls, candidates
 
 

@@ -240,3 +240,17 @@ def test_a_segmentation_under_another_name_is_not_read_as_garment_only(tmp_path)
     np.testing.assert_array_equal(sv.read_scan_file(p).labels, labels)
     p.write_bytes(_ply_with_property(V, F, "quality", labels))   # any other property: garment-only as before
     assert sv.read_scan_file(p).labels is None
+
+
+def test_a_label_the_scan_lacks_is_named_as_missing():
+    """label=99 (absent, and in no label map) said "label 'label 99' (99) is not a garment class:
+    give the garment type" — a garment type would not have helped; the scan has no such vertex."""
+    V, F = _tube()
+    labels = np.where(V[:, 1] > 0.75, 1, 0)   # upper and body
+    for lab, shown in ((99, "99 (not in the label map)"), (-1, "-1 (not in the label map)"), ("skirt", "'skirt' (3)")):
+        msg = _refused(sv.NoGarmentError, sv.NoGarmentError.code, f"no vertices with label {shown}",
+                       "upper (1): ", call=lambda: sv.load_scan((V, F, labels), label=lab))
+        assert "garment type" not in msg
+    # present but not a garment: still that
+    _refused(sv.LabelError, "BAD_LABELS", "'body' (0) is not a garment class",
+             call=lambda: sv.load_scan((V, F, labels), label="body"))
