@@ -35,7 +35,9 @@ bending and judged on the lowest of K fresh drapes, `measurement_fit_refit` — 
 checks' bending candidates judged as bendcompare_M, e.g. fitrefit_fresh@3; fitrefit_none@K: no candidates at the
 checks, `bending_candidates: []`); workers_N (the bending candidates of a check draped N at once, `candidate_workers`; the
 default 0 is one per CPU: workers_1, one after the other, is the reference of its times — the results are the same
-bit for bit).
+bit for bit); bendrange_D (the recovered bending's range judged at ±d for each d, `bending_range_offsets`: decades
+joined by +, e.g. bendrange_0.15+0.5+1, the default; bendrange_none: not judged, the reference of its cost — the
+results are the same bit for bit).
 
 The floor: each case's truth.chamfer_truth_cm is the truth's own drape against the scan (the scan's
 noise, resampling and holes; SyntheticCase.truth_chamfer_cm), so each variant's chamfer_ratio_floor
@@ -78,7 +80,7 @@ VARIANTS = ("full", "no_cage", "no_seam", "no_curvature")
 # and with another weight σ of the interior term
 EXTRA_VARIANTS = ("euclidean", "no_cage_euclidean", "unguided", "no_measurement_fit", "fixed_masses", "stretch", "bending_step_1",
                   "robust_boundary", "unsized", "interior_K", "to_surface", "to_points",
-                  "guided_K", "bendtry_D", "outdrag_K", "fitbend_D", "bendcompare_M@K", "fitrefit_M@K", "workers_N")   # interior_K: σ = K per m², e.g. interior_1; guided_K: κ_g = K per s² (K+L+…: each in turn)
+                  "guided_K", "bendtry_D", "outdrag_K", "fitbend_D", "bendcompare_M@K", "fitrefit_M@K", "workers_N", "bendrange_D")   # interior_K: σ = K per m², e.g. interior_1; guided_K: κ_g = K per s² (K+L+…: each in turn)
 
 
 def corner_edge_lengths(g, corners_from=None) -> list:
@@ -195,6 +197,14 @@ def options_for(variant, iterations, output_edge=0.0, friction=None, contact_nor
     if variant.startswith("bendcompare_"):   # the drapes a bending candidate is judged on: guided | unguided | asymmetric | fresh
         spec, k = _fresh_drapes_suffix(variant, o)
         return o.with_(bending_compare=spec[len("bendcompare_"):], bending_fresh_drapes=k)
+    if variant.startswith("bendrange_"):   # the recovered bending's range: ± offsets in decades, or none
+        spec = variant[len("bendrange_"):]
+        try:
+            offsets = [] if spec == "none" else [float(d) for d in spec.split("+")]
+        except ValueError:
+            raise ValueError(f"variant {variant!r}: bendrange_D needs offsets in decades joined by +, e.g. "
+                             "bendrange_0.15+0.5+1, or bendrange_none") from None
+        return o.with_(bending_range_offsets=offsets)
     if variant.startswith("workers_"):   # bending candidates draped at once (candidate_workers): the same results, other times
         try:
             return o.with_(candidate_workers=int(variant[len("workers_"):]))
