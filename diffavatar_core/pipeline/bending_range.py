@@ -10,6 +10,8 @@ BENDING_RANGE, or no equilibrium). Run on a twin of the objective: the recovery'
 and results stay as they are, bit for bit."""
 from __future__ import annotations
 
+import time
+
 import numpy as np
 
 
@@ -41,11 +43,12 @@ def bending_range(obj, params, offsets, margin: float) -> dict | None:
     or when φ at `params` has no finite value; else {'bending_Nm': the recovered k_b (geometric mean
     over the material groups), 'low_Nm' / 'high_Nm': the range's ends (None: open), 'margin',
     'value': φ at params from its warm drape, 'judged': [[d decades, k_b N·m, φ judged, φ it is
-    judged against, verdict] per offset judged, by d]}. Offsets apply to every group alike
-    (log10 k_b + d)."""
+    judged against, verdict] per offset judged, by d], 'wall_s': its time}. Offsets apply to every
+    group alike (log10 k_b + d)."""
     ds = _offsets(offsets)
     if not ds or "log_bend" not in params:
         return None
+    t0 = time.perf_counter()
     twin = obj.twin()
     value = twin._value_or_inf(params)   # the recovered θ re-draped from its warm drape, as a check starts
     if not np.isfinite(value):
@@ -59,7 +62,7 @@ def bending_range(obj, params, offsets, margin: float) -> dict | None:
     b = float(10.0 ** log_b.mean())
     low, high = range_ends(ds, {d: j[4] for d, j in judged.items()}, b)
     return {"bending_Nm": b, "low_Nm": low, "high_Nm": high, "margin": float(margin),
-            "value": float(value), "judged": [judged[d] for d in sorted(judged)]}
+            "value": float(value), "judged": [judged[d] for d in sorted(judged)], "wall_s": time.perf_counter() - t0}
 
 
 __all__ = ["bending_range"]
