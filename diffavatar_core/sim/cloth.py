@@ -218,15 +218,18 @@ class Cloth:
 
     def clone(self) -> "Cloth":
         """An independent Cloth: this one's Model, Control and sweep plan in a solver of its own (the
-        C++ objects copied, the body's BVH rebuilt, nothing shared), at this state's positions (m) and
-        velocities (m/s), with the last drape's simulation parameters. The two may run at once in
-        two threads (their C++ calls release the GIL). Not copied: the contact set and anchors a
-        solver holds between calls — the next drape, refine or reequilibrate of the clone detects
-        and sets its own, as they do on this cloth (keep_anchor / keep_contacts reuse them)."""
+        C++ objects copied, nothing shared), at this state's positions (m) and velocities (m/s),
+        with the last drape's simulation parameters. The two may run at once in two threads (their
+        C++ calls release the GIL). The body's BVH is copied as it is (XpbdSolver.clone), not
+        rebuilt: a tree built for another pose and refit breaks exact ties between body triangles
+        (a vertex nearest a body vertex) otherwise than a new one, and the contact planes then
+        differ — a clone after the body moved drapes as its original only with the same tree. Not
+        copied: the contact set and anchors a solver holds between calls — the next drape, refine
+        or reequilibrate of the clone detects and sets its own, as they do on this cloth
+        (keep_anchor / keep_contacts reuse them)."""
         c = object.__new__(Cloth)
         c.materials, c.body_faces = list(self.materials), self.body_faces
-        c.solver = _core.XpbdSolver(self.solver.model, self.solver.control)
-        c.solver.contact_query_cache = self.solver.contact_query_cache
+        c.solver = self.solver.clone()
         if hasattr(self, "_sweep_plan_args"):
             c.set_sweep_plan(*self._sweep_plan_args)
         if hasattr(self, "params"):

@@ -120,6 +120,9 @@ void bind_sim(py::module_& m) {
 
   py::class_<XpbdSolver>(m, "XpbdSolver")
       .def(py::init<ClothModel, ClothControl>(), py::arg("model"), py::arg("control"))
+      .def("clone", &XpbdSolver::clone, py::call_guard<py::gil_scoped_release>(),
+           "An independent solver of this model and control with a copy of its body collider (the same "
+           "contacts from any state; a rebuilt BVH can break exact ties otherwise).")
       .def_property_readonly("model", &XpbdSolver::model, py::return_value_policy::reference_internal)
       // A copy: writing into it must not bypass set_control's validation and rest cache.
       .def_property_readonly("control", [](const XpbdSolver& s) { return ClothControl(s.control()); })

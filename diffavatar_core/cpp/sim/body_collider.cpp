@@ -36,6 +36,13 @@ BodyCollider::BodyCollider(const RefX3d& V, const RefX3i& F, bool valleys) {
   }
 }
 
+BodyCollider BodyCollider::clone() const {
+  BodyCollider c;
+  if (bvh_) c.bvh_ = std::make_shared<TriangleMeshBvh>(*bvh_);
+  c.edge_neighbours_ = edge_neighbours_;  // immutable: shared
+  return c;
+}
+
 void BodyCollider::set_vertices(const RefX3d& V) {
   if (bvh_) bvh_->set_vertices(V);
 }

@@ -66,6 +66,11 @@ class BodyCollider {
   BodyCollider(const RefX3d& V, const RefX3i& F, bool valleys = false);
   bool empty() const { return !bvh_; }
   void set_vertices(const RefX3d& V);
+  /// An independent copy: the BVH copied as it is — built for the first pose, refit since — not
+  /// rebuilt, so queries walk the same tree and break exact ties (a point nearest a body vertex is
+  /// as near every triangle around it) alike; a rebuilt tree can pick another of the tied
+  /// triangles, whose face plane then differs.
+  BodyCollider clone() const;
   /// Contacts of the free vertices of x closer than `radius` (m) to the body surface,
   /// sorted by vertex (deterministic), one per vertex (its closest point; the sweeps and the
   /// trajectory adjoint project and reverse contacts in parallel on that basis) unless `valleys`

@@ -27,6 +27,13 @@ XpbdSolver::XpbdSolver(ClothModel model, ClothControl control) : model_(std::mov
   set_control(std::move(control));
 }
 
+XpbdSolver XpbdSolver::clone() const {
+  XpbdSolver c(model_, control_);
+  c.collider_ = collider_.clone();
+  c.use_query_cache_ = use_query_cache_;
+  return c;
+}
+
 void XpbdSolver::set_control(ClothControl control) {
   cache_ = prepare_control(model_, control);  // validates the rest shape before any mass uses it
   if (model_.masses_follow_rest) set_lumped_masses(model_, control.rest);

@@ -72,6 +72,11 @@ struct DrapeReport {
 class XpbdSolver {
  public:
   XpbdSolver(ClothModel model, ClothControl control);
+  /// An independent solver of this one's model and control with a copy of its body collider
+  /// (BodyCollider::clone: the same contacts as this one's from any state) and its query-cache
+  /// setting; not copied: the sweep plan (the default's), the contact set and anchors held
+  /// between calls, the caches (rebuilt on use).
+  XpbdSolver clone() const;
   const ClothModel& model() const { return model_; }
   const ClothControl& control() const { return control_; }
   const RestCache& cache() const { return cache_; }
