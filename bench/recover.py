@@ -127,6 +127,16 @@ def _fresh_drapes_suffix(variant, o):
         raise ValueError(f"variant {variant!r}: @K needs a whole number K of fresh drapes, e.g. {spec}@3") from None
 
 
+def _decades_variant(variant: str, prefix: str, what: str, example: str) -> list:
+    """The decades of a variant PREFIX + 'D+D+…' (or PREFIX + 'none': []); ValueError naming the form."""
+    spec = variant[len(prefix):]
+    try:
+        return [] if spec == "none" else [float(d) for d in spec.split("+")]
+    except ValueError:
+        raise ValueError(f"variant {variant!r}: {prefix}D needs {what} in decades joined by +, e.g. "
+                         f"{prefix}{example}, or {prefix}none") from None
+
+
 def options_for(variant, iterations, output_edge=0.0, friction=None, contact_normals=None, paper_optimizer=False):
     o = RecoverOptions.from_config(units="cm", iterations=iterations, output_edge_length=output_edge)
     if paper_optimizer:   # the paper's optimizer: no H¹ metric, no measurement fit (before the variant's change)
@@ -180,13 +190,7 @@ def options_for(variant, iterations, output_edge=0.0, friction=None, contact_nor
                              "e.g. bendtry_1+m1 (m: minus), optionally @margin, e.g. bendtry_1+m1@0") from None
         return o.with_(bending_candidates=offsets, bending_margin=margin)
     if variant.startswith("fitbend_"):   # the bending search after the measurement fit: steps in decades, e.g. fitbend_1+0.5
-        spec = variant[len("fitbend_"):]
-        try:
-            steps = [] if spec == "none" else [float(d) for d in spec.split("+")]
-        except ValueError:
-            raise ValueError(f"variant {variant!r}: fitbend_D needs steps in decades joined by +, e.g. "
-                             "fitbend_1+0.5+0.25, or fitbend_none") from None
-        return o.with_(measurement_fit_bending=steps)
+        return o.with_(measurement_fit_bending=_decades_variant(variant, "fitbend_", "steps", "1+0.5+0.25"))
     if variant == "fitrefit" or variant.startswith(("fitrefit@", "fitrefit_")):   # the search's candidates re-fitted
         spec, k = _fresh_drapes_suffix(variant, o)   # fitrefit_M: the checks' candidates judged as bendcompare_M; _none: none
         o = o.with_(measurement_fit_refit=True, bending_fresh_drapes=k)
@@ -198,13 +202,7 @@ def options_for(variant, iterations, output_edge=0.0, friction=None, contact_nor
         spec, k = _fresh_drapes_suffix(variant, o)
         return o.with_(bending_compare=spec[len("bendcompare_"):], bending_fresh_drapes=k)
     if variant.startswith("bendrange_"):   # the recovered bending's range: ± offsets in decades, or none
-        spec = variant[len("bendrange_"):]
-        try:
-            offsets = [] if spec == "none" else [float(d) for d in spec.split("+")]
-        except ValueError:
-            raise ValueError(f"variant {variant!r}: bendrange_D needs offsets in decades joined by +, e.g. "
-                             "bendrange_0.15+0.5+1, or bendrange_none") from None
-        return o.with_(bending_range_offsets=offsets)
+        return o.with_(bending_range_offsets=_decades_variant(variant, "bendrange_", "offsets", "0.15+0.5+1"))
     if variant.startswith("workers_"):   # bending candidates draped at once (candidate_workers): the same results, other times
         try:
             return o.with_(candidate_workers=int(variant[len("workers_"):]))
