@@ -37,28 +37,41 @@ def range_ends(offsets, verdicts: dict, b: float) -> tuple:
     return tuple(ends)
 
 
-def bending_range(obj, params, offsets, margin: float) -> dict | None:
+def bending_range(obj, params, offsets, margin: float, known=None) -> dict | None:
     """The range of the bending stiffness (N·m) that CoOptObjective `obj` judges no worse than the
     one of `params` (module docstring). Returns None without offsets, without a bending parameter,
     or when φ at `params` has no finite value; else {'bending_Nm': the recovered k_b (geometric mean
     over the material groups), 'low_Nm' / 'high_Nm': the range's ends (None: open), 'margin',
     'value': φ at params from its warm drape, 'judged': [[d decades, k_b N·m, φ judged, φ it is
     judged against, verdict] per offset judged, by d], 'wall_s': its time}. Offsets apply to every
-    group alike (log10 k_b + d)."""
+    group alike (log10 k_b + d). known: (φ at params, try_bending's last_bending_judged) of a
+    try_bending at `params` from obj's warm start that kept nothing — its value and the candidates
+    at these offsets are taken as judged (the same re-drapes bit for bit), the others judged here."""
     ds = _offsets(offsets)
     if not ds or "log_bend" not in params:
         return None
     t0 = time.perf_counter()
     twin = obj.twin()
-    value = twin._value_or_inf(params)   # the recovered θ re-draped from its warm drape, as a check starts
+    value, prior = known if known is not None else (None, [])
+    if value is None:
+        value = twin._value_or_inf(params)   # the recovered θ re-draped from its warm drape, as a check starts
     if not np.isfinite(value):
         return None
     log_b = np.asarray(params["log_bend"], np.float64).reshape(-1)
-    twin.try_bending(params, ds, current=value)
+
+    def offset_of(kb):   # the first group's k_b → its offset d (decades), None when none of ds
+        d = float(np.log10(kb) - log_b[0])
+        near = min(ds, key=lambda e: abs(e - d))
+        return near if abs(near - d) < 1e-9 else None
     judged = {}
-    for kb, v, against in twin.last_bending_judged:   # the candidates judged (the first group's k_b)
-        d = min(ds, key=lambda d: abs(d - (np.log10(kb) - log_b[0])))
-        judged[d] = [d, kb, v, against, verdict(v, against, margin)]
+    for kb, v, against in prior:
+        if offset_of(kb) is not None:
+            judged[offset_of(kb)] = [offset_of(kb), kb, v, against, verdict(v, against, margin)]
+    rest = [d for d in ds if d not in judged]
+    if rest:
+        twin.try_bending(params, rest, current=value)
+        for kb, v, against in twin.last_bending_judged:   # the candidates judged (the first group's k_b)
+            judged[offset_of(kb)] = [offset_of(kb), kb, v, against, verdict(v, against, margin)]
     b = float(10.0 ** log_b.mean())
     low, high = range_ends(ds, {d: j[4] for d, j in judged.items()}, b)
     return {"bending_Nm": b, "low_Nm": low, "high_Nm": high, "margin": float(margin),

@@ -120,6 +120,7 @@ class CoOptObjective:
         self.last_initial = None  # (φ warm, φ from the initial drape) of the last try_initial
         self.last_bending = None  # φ of the candidate the last try_bending kept (None: none kept)
         self.last_bending_judged = []   # (k_b N·m, φ judged, the current's φ) per candidate of the last try_bending
+        self.last_bending_current = None   # φ at the last try_bending's parameters from its warm start (None: not evaluated)
         self._fresh_seen = {}    # params key -> (φ, drape) of recent fresh drapes (_fresh_value)
         bp = np.zeros((0, 3)) if body_points is None else np.asarray(body_points, np.float64).reshape(-1, 3)
         if len(bp) > opts.samples:   # a fixed, reproducible subset
@@ -444,12 +445,13 @@ class CoOptObjective:
         a ValueError there drops the candidate. compare: the judging for this call instead of
         opts.bending_compare."""
         offsets = self.opts.bending_candidates if offsets is None else tuple(offsets)
-        self.last_bending_judged = []
+        self.last_bending_judged, self.last_bending_current = [], None
         if not offsets or "log_bend" not in params:
             return params, False
         mode = self.opts.bending_compare if compare is None else compare
         x_keep = np.array(self.x_warm)
         v_cur = self._value_or_inf(params) if current is None else current
+        self.last_bending_current = v_cur
         if not np.isfinite(v_cur):
             return params, False
         lo, hi = np.log10(BENDING_RANGE[0]), np.log10(BENDING_RANGE[1])
@@ -736,7 +738,10 @@ def co_optimize(cloth, garment, scan_points, scan_loops: dict, opts: RecoverOpti
             best, b = obj.try_bending(best)
             bending_used.append(b)
             if not cancelled():   # on a twin: the returned drape and parameters are the same without it
-                brange = bending_range(obj, best, opts.bending_range_offsets, opts.bending_margin)
+                # nothing kept: the check just judged these parameters from this warm start — its φ and
+                # candidates are the range's (the same re-drapes, bit for bit), not judged twice
+                known = None if b else (obj.last_bending_current, obj.last_bending_judged)
+                brange = bending_range(obj, best, opts.bending_range_offsets, opts.bending_margin, known)
         kept, gkept = int(sum(fresh_used)), int(sum(guided_used))
     rest, bend, bp = obj.unpack(best)
     bv = body_model.pose(bp) if obj.use_body else None

@@ -126,3 +126,16 @@ def test_offsets_are_validated():
     for bad in ([0.0], [-0.5], [4.0], [float("nan")], ["a"]):
         with pytest.raises(ValueError, match="bending_range_offsets"):
             RecoverOptions.from_config(bending_range_offsets=bad)
+
+
+def test_a_check_that_kept_nothing_lends_the_range_its_judged_candidates(own_drape):
+    """co_optimize's last check judges the returned parameters from the same warm start: its φ and
+    its candidates at the range's offsets are the range's own, bit for bit — not judged twice."""
+    obj, theta = _objective(own_drape)
+    best, kept = obj.try_bending(theta, (0.5, -0.5))
+    assert not kept   # the scan is this bending's own drape
+    known = (obj.last_bending_current, list(obj.last_bending_judged))
+    a = bending_range(obj, theta, (0.15, 0.5), 0.02, known)
+    b = bending_range(obj, theta, (0.15, 0.5), 0.02)
+    assert a["value"] == b["value"] and a["judged"] == b["judged"]
+    assert (a["low_Nm"], a["high_Nm"]) == (b["low_Nm"], b["high_Nm"])
