@@ -11,8 +11,13 @@ rest shape then scaled by 1.01 (a pattern step of the co-optimization) and:
     and by the cached in-place assembly (`newton_hessian`) — the same matrix bit for bit
     (checked here and in test/sim/test_newton_system.py); best of `--repeats`, interleaved so both
     see the same load. Both include the same copy of the matrix to Python.
+  * factorize_ms: the LDLᵀ of that matrix by Eigen's SimplicialLDLT (the reference; refine()'s
+    solver until stop 53) and by linalg/supernodal_ldlt.hpp (refine()'s now), the same matrix,
+    each analysed once, best of `--repeats` interleaved; with both solutions' residuals.
   * newton: the warm re-equilibration after the rest-shape step (Cloth.refine, anchors at the
-    drape, κ = 1/s²): iterations, wall ms per iteration (gradient, assembly, LDLᵀ, line search).
+    drape, κ = 1/s²): iterations, wall ms per iteration (gradient, assembly, LDLᵀ, line search);
+    newton_supernodal: the same from a clone with `supernodal_newton` on, and how far apart the
+    two equilibria are.
 Times in ms on this machine; quote the ratios (2-core machines are noisy).
 """
 from __future__ import annotations
@@ -58,13 +63,43 @@ def case(edge, repeats):
         key = "projected" if project else "exact"
         out[f"assembly_{key}"] = {"nonzeros": int(A.nnz), "identical": same, "reference_ms": min(ref),
                                   "ours_ms": min(ours), "speedup_vs_reference": min(ref) / min(ours)}
+        # the step's solve: Eigen's SimplicialLDLT (the reference, refine()'s solver before stop
+        # 53) against the supernodal LDLᵀ refine() uses; the same ordering, the analysis kept
+        b = -np.asarray(s.energy_gradient(x, G)).reshape(-1)[:A.shape[0]]
+        fact = {}
+        for name in ("SimplicialLdlt", "SupernodalLdlt"):
+            f = getattr(dc._core, name)()
+            t0 = time.perf_counter()
+            f.analyze_pattern(B)
+            fact[name] = {"f": f, "analyze_ms": 1e3 * (time.perf_counter() - t0), "times": []}
+        for _ in range(repeats):
+            for name in fact:
+                fact[name]["times"].append(ms(lambda: fact[name]["f"].factorize(B)))
+        sol = {name: v["f"].solve(b) for name, v in fact.items()}
+        ref_x, our_x = sol["SimplicialLdlt"], sol["SupernodalLdlt"]
+        r, o = fact["SimplicialLdlt"], fact["SupernodalLdlt"]
+        out[f"factorize_{key}"] = {
+            "reference_ms": min(r["times"]), "ours_ms": min(o["times"]),
+            "speedup_vs_reference": min(r["times"]) / min(o["times"]),
+            "analyze_reference_ms": r["analyze_ms"], "analyze_ours_ms": o["analyze_ms"],
+            "solution_relative_difference": float(np.linalg.norm(our_x - ref_x) / np.linalg.norm(ref_x)),
+            "relative_residual_ours": float(np.linalg.norm(B @ our_x - b) / np.linalg.norm(b)),
+            "relative_residual_reference": float(np.linalg.norm(B @ ref_x - b) / np.linalg.norm(b))}
     rest = np.asarray(cloth.control.rest)
     cloth.set_control(rest=rest * 1.01)
-    t0 = time.perf_counter()
-    it, res = cloth.refine(keep_anchor=False, residual_tol=1e-7, refine_iterations=120, anchor_stiffness=1.0)
-    wall = time.perf_counter() - t0
-    out["newton"] = {"iterations": int(it), "residual": float(res), "wall_ms": 1e3 * wall,
-                     "ms_per_iteration": 1e3 * wall / max(it, 1)}
+    twins = {"simplicial": cloth.clone(), "supernodal": cloth.clone()}   # the same state, contacts, BVH
+    twins["supernodal"].solver.supernodal_newton = True
+    ends = {}
+    for name, c in twins.items():   # one after the other, the reference first
+        t0 = time.perf_counter()
+        it, res = c.refine(keep_anchor=False, residual_tol=1e-7, refine_iterations=120, anchor_stiffness=1.0)
+        wall = time.perf_counter() - t0
+        ends[name] = np.array(c.x)
+        out["newton" if name == "simplicial" else "newton_supernodal"] = {
+            "iterations": int(it), "residual": float(res), "wall_ms": 1e3 * wall, "ms_per_iteration": 1e3 * wall / max(it, 1)}
+    out["newton_supernodal"]["speedup_per_iteration_vs_simplicial"] = (
+        out["newton"]["ms_per_iteration"] / out["newton_supernodal"]["ms_per_iteration"])
+    out["newton_supernodal"]["max_position_difference_m"] = float(np.abs(ends["simplicial"] - ends["supernodal"]).max())
     return out
 
 
@@ -73,7 +108,7 @@ def main(argv=None):
     ap.add_argument("--edges", type=float, nargs="+", default=[0.04, 0.02], help="template edge lengths (m)")
     ap.add_argument("--repeats", type=int, default=20)
     a = ap.parse_args(argv)
-    out = {"benchmark": "newton_assembly", "date": time.strftime("%Y-%m-%d"),
+    out = {"benchmark": "newton_assembly_and_factorization", "date": time.strftime("%Y-%m-%d"),
            "machine": f"{platform.machine()}, {os.cpu_count()} logical cores", "threads": dc.num_threads(),
            "load_average_start": [round(v, 2) for v in os.getloadavg()],
            "cases": [case(e, a.repeats) for e in a.edges]}

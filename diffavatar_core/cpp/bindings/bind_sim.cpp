@@ -185,6 +185,9 @@ void bind_sim(py::module_& m) {
       .def_property_readonly("anchor", &XpbdSolver::anchor)
       .def("residual", &XpbdSolver::residual, py::arg("x"), py::arg("gravity"))
       .def("max_penetration", &XpbdSolver::max_penetration, py::arg("x"))
+      .def_property("supernodal_newton", &XpbdSolver::supernodal_newton, &XpbdSolver::set_supernodal_newton,
+                    "Whether refine() solves its Newton steps by the supernodal LDLᵀ (linalg/supernodal_ldlt.hpp) "
+                    "instead of Eigen's SimplicialLDLT (default False; the same solution up to round-off). Clones copy it.")
       .def_property("contact_query_cache", &XpbdSolver::use_query_cache, &XpbdSolver::set_use_query_cache,
                     "Whether step() detects contacts through its per-vertex query cache (default True; "
                     "the same contacts either way: sim/contact_query_cache.hpp).")

@@ -10,6 +10,7 @@ namespace py = pybind11;
 namespace diffavatar {
 void bind_common(py::module_& m);
 void bind_geometry(py::module_& m);
+void bind_linalg(py::module_& m);
 void bind_loss(py::module_& m);
 void bind_sim(py::module_& m);
 void bind_render(py::module_& m);
@@ -21,6 +22,7 @@ PYBIND11_MODULE(_core, m) {
   m.doc() = "DiffAvatar C++ core (C++17, Eigen, OpenMP). Use it through diffavatar_core.";
   diffavatar::bind_common(m);
   diffavatar::bind_geometry(m);
+  diffavatar::bind_linalg(m);
   diffavatar::bind_loss(m);
   diffavatar::bind_sim(m);
   diffavatar::bind_render(m);

@@ -59,20 +59,42 @@ const NewtonSystem::Matrix& NewtonSystem::assemble(const EnergyContext& ctx, con
   return H_;
 }
 
-const NewtonSystem::Factorization& NewtonSystem::factorize(const Matrix& A) {
+bool NewtonSystem::factorize(const Matrix& A) {
   const int* o = A.outerIndexPtr();
   const int* in = A.innerIndexPtr();
   const bool same = outer_.size() == static_cast<std::size_t>(A.outerSize() + 1) &&
                     inner_.size() == static_cast<std::size_t>(A.nonZeros()) && std::equal(outer_.begin(), outer_.end(), o) &&
                     std::equal(inner_.begin(), inner_.end(), in);
-  if (!ldlt_) ldlt_ = std::make_unique<Factorization>();  // a moved-from system
-  if (!same) {
-    ldlt_->analyzePattern(A);
+  const bool fresh = supernodal_ ? !supernodal_ldlt_ : !simplicial_;
+  if (supernodal_ && !supernodal_ldlt_) supernodal_ldlt_ = std::make_unique<SupernodalLdlt>();
+  if (!supernodal_ && !simplicial_) simplicial_ = std::make_unique<Eigen::SimplicialLDLT<Matrix>>();
+  if (!same || fresh) {
+    if (supernodal_)
+      supernodal_ldlt_->analyzePattern(A);
+    else
+      simplicial_->analyzePattern(A);
     outer_.assign(o, o + A.outerSize() + 1);
     inner_.assign(in, in + A.nonZeros());
   }
-  ldlt_->factorize(A);
-  return *ldlt_;
+  if (supernodal_) {
+    supernodal_ldlt_->factorize(A);
+    return supernodal_ldlt_->info() == Eigen::Success;
+  }
+  simplicial_->factorize(A);
+  return simplicial_->info() == Eigen::Success;
+}
+
+Eigen::VectorXd NewtonSystem::solve(const Eigen::VectorXd& b) const {
+  return supernodal_ ? supernodal_ldlt_->solve(b) : Eigen::VectorXd(simplicial_->solve(b));
+}
+
+void NewtonSystem::set_supernodal(bool on) {
+  if (on == supernodal_) return;
+  supernodal_ = on;
+  simplicial_.reset();
+  supernodal_ldlt_.reset();
+  outer_.clear();
+  inner_.clear();
 }
 
 }  // namespace diffavatar

@@ -31,6 +31,7 @@ XpbdSolver XpbdSolver::clone() const {
   XpbdSolver c(model_, control_);
   c.collider_ = collider_.clone();
   c.use_query_cache_ = use_query_cache_;
+  c.newton_.set_supernodal(newton_.supernodal());
   return c;
 }
 
@@ -378,9 +379,8 @@ int XpbdSolver::refine(ClothState& s, const SimParams& p, const DrapeParams& d, 
           if (dof[i] >= 0)
             for (int k = 0; k < 3; ++k) Hr.coeffRef(dof[i] + k, dof[i] + k) += reg * model_.mass[i];
       }
-      const auto& ldlt = newton_.factorize(reg > 0 ? Hr : H);
-      if (ldlt.info() == Eigen::Success) {
-        step = ldlt.solve(-g);
+      if (newton_.factorize(reg > 0 ? Hr : H)) {
+        step = newton_.solve(-g);
         if (step.allFinite()) break;
       }
       reg = std::max(1e-2, reg * 10.0);

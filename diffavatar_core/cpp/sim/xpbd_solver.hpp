@@ -129,6 +129,9 @@ class XpbdSolver {
   /// way (sim/contact_query_cache.hpp); off for the test and the benchmark's reference.
   void set_use_query_cache(bool on) { use_query_cache_ = on; }
   bool use_query_cache() const { return use_query_cache_; }
+  /// refine()'s LDLᵀ: linalg/supernodal_ldlt.hpp when on, Eigen's SimplicialLDLT otherwise.
+  void set_supernodal_newton(bool on) { newton_.set_supernodal(on); }
+  bool supernodal_newton() const { return newton_.supernodal(); }
   const ContactQueryCache& query_cache() const { return query_cache_; }
 
  private:
