@@ -37,7 +37,8 @@ checks, `bending_candidates: []`); workers_N (the bending candidates of a check 
 default 0 is one per CPU: workers_1, one after the other, is the reference of its times — the results are the same
 bit for bit); bendrange_D (the recovered bending's range judged at ±d for each d, `bending_range_offsets`: decades
 joined by +, e.g. bendrange_0.15+0.5+1, the default; bendrange_none: not judged, the reference of its cost — the
-results are the same bit for bit).
+results are the same bit for bit); newton_supernodal / newton_simplicial (Newton's LDLᵀ, `newton_solver`: the
+supernodal one or Eigen's, the default — the same solutions up to round-off, so the drapes may find other folds).
 
 The floor: each case's truth.chamfer_truth_cm is the truth's own drape against the scan (the scan's
 noise, resampling and holes; SyntheticCase.truth_chamfer_cm), so each variant's chamfer_ratio_floor
@@ -80,7 +81,8 @@ VARIANTS = ("full", "no_cage", "no_seam", "no_curvature")
 # and with another weight σ of the interior term
 EXTRA_VARIANTS = ("euclidean", "no_cage_euclidean", "unguided", "no_measurement_fit", "fixed_masses", "stretch", "bending_step_1",
                   "robust_boundary", "unsized", "interior_K", "to_surface", "to_points",
-                  "guided_K", "bendtry_D", "outdrag_K", "fitbend_D", "bendcompare_M@K", "fitrefit_M@K", "workers_N", "bendrange_D")   # interior_K: σ = K per m², e.g. interior_1; guided_K: κ_g = K per s² (K+L+…: each in turn)
+                  "guided_K", "bendtry_D", "outdrag_K", "fitbend_D", "bendcompare_M@K", "fitrefit_M@K", "workers_N", "bendrange_D",
+                  "newton_supernodal", "newton_simplicial")   # interior_K: σ = K per m², e.g. interior_1; guided_K: κ_g = K per s² (K+L+…: each in turn)
 
 
 def corner_edge_lengths(g, corners_from=None) -> list:
@@ -203,6 +205,8 @@ def options_for(variant, iterations, output_edge=0.0, friction=None, contact_nor
         return o.with_(bending_compare=spec[len("bendcompare_"):], bending_fresh_drapes=k)
     if variant.startswith("bendrange_"):   # the recovered bending's range: ± offsets in decades, or none
         return o.with_(bending_range_offsets=_decades_variant(variant, "bendrange_", "offsets", "0.15+0.5+1"))
+    if variant in ("newton_supernodal", "newton_simplicial"):   # Newton's LDLᵀ
+        return o.with_(newton_solver=variant[len("newton_"):])
     if variant.startswith("workers_"):   # bending candidates draped at once (candidate_workers): the same results, other times
         try:
             return o.with_(candidate_workers=int(variant[len("workers_"):]))

@@ -15,6 +15,9 @@ BENDING = ("garment", "panel", "fixed")
 STRETCH = ("fixed", "garment")
 INTERIOR_TO = ("surface", "points")
 BENDING_COMPARE = ("guided", "unguided", "asymmetric", "fresh")   # CoOptObjective.try_bending
+# Newton's LDLᵀ: Eigen's SimplicialLDLT, or the supernodal one (linalg/supernodal_ldlt.hpp; the same
+# solutions up to round-off, 1.3–2.1× faster Newton iterations on the t-shirt, bench/newton.py)
+NEWTON_SOLVERS = ("simplicial", "supernodal")
 
 
 @dataclass(frozen=True)
@@ -86,6 +89,7 @@ class RecoverOptions:
     bending_compare: str = "guided"   # the drapes a bending candidate is judged on (CoOptObjective.try_bending): BENDING_COMPARE
     bending_fresh_drapes: int = 1   # fresh drapes per bending an unguided judging takes the lowest φ of (CoOptObjective.fresh_min)
     candidate_workers: int = 0   # bending candidates draped at once, in threads (candidate_workers.py); 0: one per CPU of the process
+    newton_solver: str = "simplicial"   # the Newton refinement's LDLᵀ: NEWTON_SOLVERS (Cloth.solver.supernodal_newton)
     length_tolerance_pct: float = 2.0
     length_tolerance_min: float = 0.01
     patience: int = 5
@@ -166,6 +170,8 @@ class RecoverOptions:
             bad("output_edge_length", "must be 0 (off) or lie in [0.005, 0.2] m")
         if self.contact_normals not in CONTACT_NORMALS:
             bad("contact_normals", f"must be one of {CONTACT_NORMALS}")
+        if self.newton_solver not in NEWTON_SOLVERS:
+            bad("newton_solver", f"must be one of {NEWTON_SOLVERS}")
         if self.parametrization not in PARAMETRIZATIONS:
             bad("parametrization", f"must be one of {PARAMETRIZATIONS}")
         if self.optimizer not in OPTIMIZERS:

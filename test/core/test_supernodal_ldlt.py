@@ -133,3 +133,14 @@ def test_refine_reaches_the_same_equilibrium_with_it():
         assert cloth.solver.residual(np.array(cloth.x), G) <= 1e-9
         ends.append(np.array(cloth.x))
     assert np.abs(ends[0] - ends[1]).max() < 1e-6   # m
+
+
+def test_the_recoverys_option_reaches_every_cloth_it_makes():
+    """`newton_solver: supernodal` sets the recovery's cloths (and so their clones) to it."""
+    from diffavatar_core.pattern.templates import make_template
+    from diffavatar_core.pipeline.recovery import _garment_cloth
+    g = make_template("skirt", edge_length=0.08)
+    body = sphere(0.3, center=np.array([0.0, 0.5, 0.0]), subdivisions=1)
+    for name, on in (("simplicial", False), ("supernodal", True)):
+        c = _garment_cloth(g, g.rest, g.x0, ClothMaterial(), body, newton_solver=name)
+        assert c.solver.supernodal_newton == on and c.clone().solver.supernodal_newton == on

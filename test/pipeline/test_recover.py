@@ -301,6 +301,8 @@ def test_options_from_node_dict_and_config():
     assert (o.iterations, o.units, o.up, o.garment_type, o.job_id) == (30, "cm", "z", None, "j1")
     with pytest.raises(ValueError, match="parametrization"):
         RecoverOptions.from_config(parametrization="mesh")
+    with pytest.raises(ValueError, match="newton_solver.*simplicial.*supernodal"):
+        RecoverOptions.from_config(newton_solver="cholmod")
     with pytest.raises(ValueError, match="unknown option"):
         RecoverOptions.from_config(iteration=3)
     with pytest.raises(ValueError, match="edge_length"):
