@@ -2,10 +2,10 @@
 // the free DOFs and its LDLᵀ factorization. Every Newton iteration of every refine() has the same
 // sparsity — the mesh's element blocks; contacts and anchors add to vertices' diagonal blocks —
 // so the pattern, each element entry's slot in it and the factorization's symbolic analysis (the
-// fill-reducing ordering, the supernodes) are computed once and kept while `dof` and the pattern stay the same;
-// an iteration only writes values. The matrix is energy_hessian's bit for bit (the same entries
-// summed in the same order, cloth_energy.hpp scatter_hessian), so the Newton iterates are too.
-// Copies start with an empty cache. Units: J/m² (N/m).
+// fill-reducing ordering; the supernodes) are computed once and kept while `dof` and the pattern
+// stay the same; an iteration only writes values. The matrix is energy_hessian's bit for bit (the
+// same entries summed in the same order, cloth_energy.hpp scatter_hessian), so the Newton iterates
+// are too. Copies start with an empty cache and the same choice of LDLᵀ. Units: J/m² (N/m).
 #pragma once
 #include <Eigen/SparseCholesky>
 #include <Eigen/SparseCore>
@@ -41,8 +41,8 @@ class NewtonSystem {
   /// A⁻¹ b by the last factorize().
   Eigen::VectorXd solve(const Eigen::VectorXd& b) const;
   /// Which LDLᵀ: Eigen's SimplicialLDLT (default) or linalg/supernodal_ldlt.hpp (the same AMD
-  /// ordering, the same solution up to round-off, 2.1–2.5× faster on the t-shirt's Hessians;
-  /// opt-in until the recovery's results are re-measured with its round-off).
+  /// ordering, the same solution up to round-off, 1.9–2.6× faster on the t-shirt's Hessians;
+  /// opt-in: end to end its round-off gives other drapes, not a clear saving, BENCHMARKS.md stop 53).
   void set_supernodal(bool on);
   bool supernodal() const { return supernodal_; }
 
@@ -55,7 +55,7 @@ class NewtonSystem {
   bool supernodal_ = false;
   std::unique_ptr<Eigen::SimplicialLDLT<Matrix>> simplicial_;
   std::unique_ptr<SupernodalLdlt> supernodal_ldlt_;
-  std::vector<int> outer_, inner_;  // the pattern ldlt_'s symbolic analysis is of
+  std::vector<int> outer_, inner_;  // the pattern the current factorization's symbolic analysis is of
 };
 
 }  // namespace diffavatar
