@@ -4,7 +4,7 @@ import pathlib
 
 
 def register(sub) -> None:
-    from ..sim.drape_job import GARMENTS, SUBSTEPS, SWEEPS
+    from ..sim.drape_job import GARMENTS, NEWTON_SOLVERS, SUBSTEPS, SWEEPS
     p = sub.add_parser("drape", help="sew and drape a garment on the default body (draped.obj, body.obj, drape.json)")
     p.add_argument("--garment", default="tshirt", choices=GARMENTS)
     p.add_argument("--out", required=True, help="output directory")
@@ -17,6 +17,9 @@ def register(sub) -> None:
                         "or double; the Newton refinement is float64 either way (default %(default)s)")
     p.add_argument("--edge", type=float, default=0.025, help="target edge length of the garment mesh (m)")
     p.add_argument("--no-refine", action="store_true", help="skip the Newton equilibrium refinement")
+    p.add_argument("--newton-solver", default="supernodal", choices=NEWTON_SOLVERS,
+                   help="the Newton refinement's LDLT: supernodal (1.6x faster drape at 1 cm) or simplicial (Eigen's; "
+                        "the same solutions up to round-off; default %(default)s)")
     p.set_defaults(func=_run)
 
 
@@ -24,6 +27,6 @@ def _run(args) -> int:
     from ..sim import drape_job
     info = drape_job.run(pathlib.Path(args.out), args.garment, args.max_steps, args.iterations,
                          refine=not args.no_refine, edge=args.edge, substeps=args.substeps,
-                         sweeps=args.sweeps)
+                         sweeps=args.sweeps, newton_solver=args.newton_solver)
     print(json.dumps(info, indent=2))
     return 0 if not info["diverged"] else 1

@@ -7,7 +7,7 @@ import math
 from dataclasses import dataclass, field, fields, replace
 
 from ..config import load_config
-from ..sim.cloth import CONTACT_NORMALS
+from ..sim.cloth import CONTACT_NORMALS, NEWTON_SOLVERS
 
 PARAMETRIZATIONS = ("cage", "vertices")
 OPTIMIZERS = ("lbfgs", "adam")
@@ -15,9 +15,6 @@ BENDING = ("garment", "panel", "fixed")
 STRETCH = ("fixed", "garment")
 INTERIOR_TO = ("surface", "points")
 BENDING_COMPARE = ("guided", "unguided", "asymmetric", "fresh")   # CoOptObjective.try_bending
-# Newton's LDLᵀ: Eigen's SimplicialLDLT, or the supernodal one (linalg/supernodal_ldlt.hpp; the same
-# solutions up to round-off, 1.3–2.1× faster Newton iterations on the t-shirt, bench/newton.py)
-NEWTON_SOLVERS = ("simplicial", "supernodal")
 
 
 @dataclass(frozen=True)

@@ -165,7 +165,7 @@ def _garment_cloth(g: Garment, rest, x, material, body, bend_stiffness=None, mas
     replaces the material's. Its masses follow the rest shape (masses_follow_rest): every
     pattern the optimizer tries weighs what its area does, and the equilibrium adjoint
     differentiates that; with False they stay those of `rest`. contact_normals: the contact
-    plane (sim.cloth.CONTACT_NORMALS); newton_solver: Newton's LDLᵀ (options.NEWTON_SOLVERS; its
+    plane (sim.cloth.CONTACT_NORMALS); newton_solver: Newton's LDLᵀ (sim.cloth.NEWTON_SOLVERS; its
     clones keep it)."""
     cloth = Cloth(rest, g.faces, x, seams=g.seams, groups=g.panel[g.faces[:, 0]],
                   materials=[material] * len(g.panels), body=body, grain=g.face_grain(),

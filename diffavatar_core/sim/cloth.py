@@ -82,6 +82,9 @@ CONTACT_REDETECTIONS = 3
 # closest triangle's own plane, the tangent plane with the interpolated vertex normal, or face planes
 # with both faces' over a concave body edge in the quasi-static solves (valley; sim/body_collider.hpp).
 CONTACT_NORMALS = ("face", "smooth", "valley")
+# Newton's LDLᵀ (XpbdSolver.supernodal_newton): Eigen's SimplicialLDLT, or the supernodal one of
+# linalg/supernodal_ldlt.hpp (the same solutions up to round-off; bench/newton.py)
+NEWTON_SOLVERS = ("simplicial", "supernodal")
 
 
 def _sim_params(dt, iterations, gravity, damping, contact_radius, max_speed, fast=False, friction=0.0):

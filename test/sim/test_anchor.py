@@ -6,6 +6,7 @@ import pytest
 
 from diffavatar_core.sim import Cloth, ClothMaterial
 from diffavatar_core.sim.scenes import grid_sheet
+from sheet_on_sphere import sheet_on_sphere
 
 
 def _flat_sheet():
@@ -77,21 +78,9 @@ def test_self_anchor_ends_at_an_equilibrium_without_anchor_forces():
 
 
 def _sheet_on_a_coarse_sphere():
-    """A sheet hung over an icosphere of 80 faces (radius 8 cm): with the face contact planes a
-    vertex's plane jumps where its closest face changes. Draped, then every free vertex moved by
-    3 mm of noise (an optimizer's warm start)."""
-    from diffavatar_core.sim.scenes import grid_sheet, sphere
-    rest, F = grid_sheet(0.2, 0.2, 11, 11)
-    x0 = np.column_stack([rest[:, 0], 0.2 - rest[:, 1], np.zeros(len(rest))])
-    body = sphere(0.08, center=np.array([0.1, 0.1, -0.06]), subdivisions=1)
-    cloth = Cloth(rest, F, x0, pinned=np.flatnonzero(np.isclose(rest[:, 1], 0.0)), body=body,
-                  materials=ClothMaterial(bend_stiffness=1e-5))
-    assert cloth.drape(max_steps=400, residual_tol=1e-8, refine_iterations=200).converged
-    x = np.array(cloth.x)
-    free = np.asarray(cloth.model.inv_mass) > 0
-    x[free] += np.random.default_rng(0).normal(scale=0.003, size=x[free].shape)
-    cloth.reset(x)
-    return cloth
+    """The sheet over an 80-face icosphere (sheet_on_sphere): with the face contact planes a
+    vertex's plane jumps where its closest face changes."""
+    return sheet_on_sphere(11, subdivisions=1)
 
 
 def test_self_anchor_ends_at_an_equilibrium_of_its_own_contact_planes(monkeypatch):

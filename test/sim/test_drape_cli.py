@@ -5,15 +5,20 @@ import json
 import subprocess
 import sys
 
+import pytest
 import trimesh
 
 
-def test_drape_cli_sews_the_tshirt_template_on_the_default_body(tmp_path):
+@pytest.mark.parametrize("newton_solver", ["simplicial", "supernodal"])
+def test_drape_cli_sews_the_tshirt_template_on_the_default_body(tmp_path, newton_solver):
+    """With either LDLᵀ for the Newton steps (`--newton-solver`)."""
     out = tmp_path / "drape"
     r = subprocess.run([sys.executable, "-m", "diffavatar_core", "drape", "--garment", "tshirt", "--edge", "0.04",
-                        "--max-steps", "400", "--out", str(out)], capture_output=True, text=True, timeout=600)
+                        "--max-steps", "400", "--newton-solver", newton_solver, "--out", str(out)],
+                       capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stderr
     info = json.loads((out / "drape.json").read_text())
+    assert info["newton_solver"] == newton_solver
     assert info["converged"] and not info["diverged"]
     assert info["max_seam_gap_mm"] < 1.0
     assert info["max_penetration_mm"] <= 0.1 * 4.0  # 10% of the 4 mm collision thickness
@@ -35,3 +40,9 @@ def test_the_tshirt_at_the_cli_default_edge_reaches_equilibrium(tmp_path):
     assert info["converged"], info["message"]
     assert info["residual"] <= 1e-5 and info["max_penetration_mm"] <= 0.4
     assert info["max_seam_gap_mm"] < 1.0
+
+
+def test_an_unknown_newton_solver_is_named(tmp_path):
+    from diffavatar_core.sim import drape_job
+    with pytest.raises(ValueError, match="newton_solver: expected one of simplicial, supernodal, got 'cholmod'"):
+        drape_job.execute(tmp_path, "tshirt", edge=0.04, newton_solver="cholmod")
