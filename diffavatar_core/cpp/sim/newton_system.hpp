@@ -40,9 +40,9 @@ class NewtonSystem {
   bool factorize(const Matrix& A);
   /// A⁻¹ b by the last factorize().
   Eigen::VectorXd solve(const Eigen::VectorXd& b) const;
-  /// Which LDLᵀ: Eigen's SimplicialLDLT (default) or linalg/supernodal_ldlt.hpp (the same AMD
-  /// ordering, the same solution up to round-off, 1.9–2.6× faster on the t-shirt's Hessians;
-  /// opt-in: end to end its round-off gives other drapes, not a clear saving, BENCHMARKS.md stop 53).
+  /// Which LDLᵀ: Eigen's SimplicialLDLT (the default here) or linalg/supernodal_ldlt.hpp (the same
+  /// AMD ordering, the same solution up to round-off, 1.9–3.2× faster on the t-shirt's Hessians;
+  /// docs/simulation.md "Newton's linear solver" says where each is used).
   void set_supernodal(bool on);
   bool supernodal() const { return supernodal_; }
 
