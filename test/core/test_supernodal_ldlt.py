@@ -110,6 +110,28 @@ def test_zero_pivot_fails_as_simplicial_ldlt(dense):
             f.solve(np.ones(2))
 
 
+def test_misuse_is_named_not_undefined():
+    """Out of order or with another pattern, both bindings raise instead of reading garbage."""
+    A = _sym(sp.kron(sp.eye(4), np.ones((3, 3))), np.random.default_rng(6), False)
+    other = _sym(sp.eye(12), np.random.default_rng(7), False)
+    for cls in (_core.SupernodalLdlt, _core.SimplicialLdlt):
+        f = cls()
+        with pytest.raises(ValueError, match="analyze it first"):
+            f.factorize(A)
+        with pytest.raises(RuntimeError, match="no successful factorization"):
+            f.solve(np.ones(12))
+        f.analyze_pattern(A)
+        with pytest.raises(RuntimeError, match="no successful factorization"):
+            f.solve(np.ones(12))
+        with pytest.raises(ValueError, match="not the pattern"):
+            f.factorize(other)
+        f.factorize(A)
+        with pytest.raises(ValueError, match="b has 5 entries, the matrix 12 rows"):
+            f.solve(np.ones(5))
+        with pytest.raises(ValueError, match="square"):
+            f.analyze_pattern(sp.csc_matrix(np.ones((2, 3))))
+
+
 def test_refine_reaches_the_same_equilibrium_with_it():
     """refine() with `supernodal_newton` (opt-in) solves its steps by SupernodalLdlt: from the
     rumpled sheet Newton's residual goes below the tolerance, the gradient there is zero to it

@@ -44,6 +44,7 @@ void SupernodalLdlt::relax() {
 
 void SupernodalLdlt::analyzePattern(const Matrix& A) {
   if (A.rows() != A.cols()) throw std::invalid_argument("SupernodalLdlt: matrix must be square");
+  if (!A.isCompressed()) throw std::invalid_argument("SupernodalLdlt: matrix must be compressed");
   n_ = static_cast<int>(A.rows());
   // AMD on the symmetric pattern, as Eigen::SimplicialLDLT orders it.
   {
@@ -144,16 +145,24 @@ void SupernodalLdlt::analyzePattern(const Matrix& A) {
   for (int s = 0; s < ns; ++s) panel_[s].resize(sn_[s].cols + static_cast<int>(sn_[s].rows.size()), sn_[s].cols);
   d_.resize(n_);
   info_ = Eigen::Success;
+  factorized_ = false;
+  outer_.assign(A.outerIndexPtr(), A.outerIndexPtr() + A.outerSize() + 1);
+  inner_.assign(A.innerIndexPtr(), A.innerIndexPtr() + A.nonZeros());
 }
 
 void SupernodalLdlt::factorize(const Matrix& A) {
-  if (A.rows() != n_ || A.cols() != n_ || A.nonZeros() < static_cast<Eigen::Index>(a_src_.size()))
-    throw std::invalid_argument("SupernodalLdlt::factorize: not the pattern analyzePattern saw");
+  const bool same = A.isCompressed() && A.rows() == n_ && A.cols() == n_ &&
+                    static_cast<std::size_t>(A.outerSize() + 1) == outer_.size() &&
+                    static_cast<std::size_t>(A.nonZeros()) == inner_.size() &&
+                    std::equal(outer_.begin(), outer_.end(), A.outerIndexPtr()) &&
+                    std::equal(inner_.begin(), inner_.end(), A.innerIndexPtr());
+  if (!same) throw std::invalid_argument("SupernodalLdlt::factorize: not the pattern analyzePattern saw");
   const int ns = static_cast<int>(sn_.size());
   const double* val = A.valuePtr();
   std::vector<Eigen::MatrixXd> update(ns);  // each supernode's Schur complement, for its parent
   Eigen::MatrixXd F;  // the current supernode's front (lower triangle)
   info_ = Eigen::Success;
+  factorized_ = false;
   for (int s = 0; s < ns; ++s) {
     const Supernode& sn = sn_[s];
     const int k = sn.cols, r = static_cast<int>(sn.rows.size()), m = k + r;
@@ -193,9 +202,13 @@ void SupernodalLdlt::factorize(const Matrix& A) {
     }
     panel_[s] = F.leftCols(k);
   }
+  factorized_ = true;
 }
 
 Eigen::VectorXd SupernodalLdlt::solve(const Eigen::VectorXd& b) const {
+  if (!factorized_) throw std::logic_error("SupernodalLdlt::solve: no successful factorize() of the analysed pattern");
+  if (b.size() != n_) throw std::invalid_argument("SupernodalLdlt::solve: b has " + std::to_string(b.size()) +
+                                                  " entries, the matrix " + std::to_string(n_) + " rows");
   Eigen::VectorXd y(n_);
   for (int i = 0; i < n_; ++i) y[perm_[i]] = b[i];
   const int ns = static_cast<int>(sn_.size());

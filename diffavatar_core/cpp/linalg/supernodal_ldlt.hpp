@@ -20,11 +20,13 @@ class SupernodalLdlt {
 
   /// Ordering, elimination tree, supernodes and every entry's place in its front (pattern only).
   void analyzePattern(const Matrix& A);
-  /// Numeric factorization of A (the pattern analyzePattern saw).
+  /// Numeric factorization of A (the pattern analyzePattern saw; std::invalid_argument otherwise).
   void factorize(const Matrix& A);
   Eigen::ComputationInfo info() const { return info_; }
-  /// x = A⁻¹ b (units: b's over A's).
+  /// x = A⁻¹ b (units: b's over A's). Throws std::logic_error without a successful factorize()
+  /// since the last analyzePattern(), std::invalid_argument when b's size is not A's.
   Eigen::VectorXd solve(const Eigen::VectorXd& b) const;
+  Eigen::Index rows() const { return n_; }
   /// Nonzeros of L's supernodal panels (diagonal blocks counted whole), for benchmarks.
   long panel_entries() const;
   int supernodes() const { return static_cast<int>(sn_.size()); }
@@ -49,6 +51,8 @@ class SupernodalLdlt {
   std::vector<Eigen::MatrixXd> panel_;  // per supernode, (cols + rows) × cols: unit L11 over L21
   Eigen::VectorXd d_;                   // D, permuted order
   Eigen::ComputationInfo info_ = Eigen::Success;
+  bool factorized_ = false;  // a factorize() succeeded since the last analyzePattern()
+  std::vector<int> outer_, inner_;  // the analysed pattern
 };
 
 }  // namespace diffavatar
