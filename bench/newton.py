@@ -11,8 +11,8 @@ rest shape then scaled by 1.01 (a pattern step of the co-optimization) and:
     and by the cached in-place assembly (`newton_hessian`) — the same matrix bit for bit
     (checked here and in test/sim/test_newton_system.py); best of `--repeats`, interleaved so both
     see the same load. Both include the same copy of the matrix to Python.
-  * factorize_ms: the LDLᵀ of that matrix by Eigen's SimplicialLDLT (the reference; refine()'s
-    solver until stop 53) and by linalg/supernodal_ldlt.hpp (refine()'s now), the same matrix,
+  * factorize_ms: the LDLᵀ of that matrix by Eigen's SimplicialLDLT (the reference; the
+    recovery's default) and by linalg/supernodal_ldlt.hpp (the drape command's), the same matrix,
     each analysed once, best of `--repeats` interleaved; with both solutions' residuals.
   * newton: the warm re-equilibration after the rest-shape step (Cloth.refine, anchors at the
     drape, κ = 1/s²): iterations, wall ms per iteration (gradient, assembly, LDLᵀ, line search);
@@ -63,8 +63,9 @@ def case(edge, repeats):
         key = "projected" if project else "exact"
         out[f"assembly_{key}"] = {"nonzeros": int(A.nnz), "identical": same, "reference_ms": min(ref),
                                   "ours_ms": min(ours), "speedup_vs_reference": min(ref) / min(ours)}
-        # the step's solve: Eigen's SimplicialLDLT (the reference, refine()'s solver before stop
-        # 53) against the supernodal LDLᵀ refine() uses; the same ordering, the analysis kept
+        # the step's LDLᵀ: Eigen's SimplicialLDLT (the reference; the recovery's default) against
+        # the supernodal one (`supernodal_newton`, the drape command's default); the same ordering,
+        # each analysed once. The right-hand side: the gradient's first n entries (any vector does)
         b = -np.asarray(s.energy_gradient(x, G)).reshape(-1)[:A.shape[0]]
         fact = {}
         for name in ("SimplicialLdlt", "SupernodalLdlt"):

@@ -3,6 +3,7 @@
 #include <Eigen/OrderingMethods>
 #include <algorithm>
 #include <stdexcept>
+#include <string>
 
 namespace diffavatar {
 
@@ -238,12 +239,6 @@ Eigen::VectorXd SupernodalLdlt::solve(const Eigen::VectorXd& b) const {
   Eigen::VectorXd x(n_);
   for (int i = 0; i < n_; ++i) x[i] = y[perm_[i]];
   return x;
-}
-
-long SupernodalLdlt::panel_entries() const {
-  long e = 0;
-  for (const auto& p : panel_) e += p.size();
-  return e;
 }
 
 }  // namespace diffavatar

@@ -27,9 +27,6 @@ class SupernodalLdlt {
   /// since the last analyzePattern(), std::invalid_argument when b's size is not A's.
   Eigen::VectorXd solve(const Eigen::VectorXd& b) const;
   Eigen::Index rows() const { return n_; }
-  /// Nonzeros of L's supernodal panels (diagonal blocks counted whole), for benchmarks.
-  long panel_entries() const;
-  int supernodes() const { return static_cast<int>(sn_.size()); }
 
  private:
   void relax();
