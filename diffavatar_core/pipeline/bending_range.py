@@ -59,19 +59,19 @@ def bending_range(obj, params, offsets, margin: float, known=None) -> dict | Non
         return None
     log_b = np.asarray(params["log_bend"], np.float64).reshape(-1)
 
-    def offset_of(kb):   # the first group's k_b → its offset d (decades), None when none of ds
-        d = float(np.log10(kb) - log_b[0])
-        near = min(ds, key=lambda e: abs(e - d))
-        return near if abs(near - d) < 1e-9 else None
     judged = {}
-    for kb, v, against in prior:
-        if offset_of(kb) is not None:
-            judged[offset_of(kb)] = [offset_of(kb), kb, v, against, verdict(v, against, margin)]
+
+    def record(candidates):   # (the first group's k_b, φ judged, φ against) → judged[its offset d]
+        for kb, v, against in candidates:
+            d = float(np.log10(kb) - log_b[0])
+            near = min(ds, key=lambda e: abs(e - d))
+            if abs(near - d) < 1e-9:   # a prior check's candidate at another offset is not one of ours
+                judged[near] = [near, kb, v, against, verdict(v, against, margin)]
+    record(prior)
     rest = [d for d in ds if d not in judged]
     if rest:
         twin.try_bending(params, rest, current=value)
-        for kb, v, against in twin.last_bending_judged:   # the candidates judged (the first group's k_b)
-            judged[offset_of(kb)] = [offset_of(kb), kb, v, against, verdict(v, against, margin)]
+        record(twin.last_bending_judged)
     b = float(10.0 ** log_b.mean())
     low, high = range_ends(ds, {d: j[4] for d, j in judged.items()}, b)
     return {"bending_Nm": b, "low_Nm": low, "high_Nm": high, "margin": float(margin),
