@@ -38,7 +38,8 @@ default 0 is one per CPU: workers_1, one after the other, is the reference of it
 bit for bit); bendrange_D (the recovered bending's range judged at ±d for each d, `bending_range_offsets`: decades
 joined by +, e.g. bendrange_0.15+0.5+1, the default; bendrange_none: not judged, the reference of its cost — the
 results are the same bit for bit); newton_supernodal / newton_simplicial (Newton's LDLᵀ, `newton_solver`: the
-supernodal one or Eigen's, the default — the same solutions up to round-off, so the drapes may find other folds).
+supernodal one or Eigen's, the default — the same solutions up to round-off, so the drapes may find other folds);
+edge_L (the optimization's mesh at an edge of L cm, `edge_length`, e.g. edge_2; the default 4 — the truths keep theirs).
 
 The floor: each case's truth.chamfer_truth_cm is the truth's own drape against the scan (the scan's
 noise, resampling and holes; SyntheticCase.truth_chamfer_cm), so each variant's chamfer_ratio_floor
@@ -81,7 +82,7 @@ VARIANTS = ("full", "no_cage", "no_seam", "no_curvature")
 # and with another weight σ of the interior term
 EXTRA_VARIANTS = ("euclidean", "no_cage_euclidean", "unguided", "no_measurement_fit", "fixed_masses", "stretch", "bending_step_1",
                   "robust_boundary", "unsized", "interior_K", "to_surface", "to_points",
-                  "guided_K", "bendtry_D", "outdrag_K", "fitbend_D", "bendcompare_M@K", "fitrefit_M@K", "workers_N", "bendrange_D",
+                  "guided_K", "bendtry_D", "outdrag_K", "fitbend_D", "bendcompare_M@K", "fitrefit_M@K", "workers_N", "bendrange_D", "edge_L",
                   "newton_supernodal", "newton_simplicial")   # interior_K: σ = K per m², e.g. interior_1; guided_K: κ_g = K per s² (K+L+…: each in turn)
 
 
@@ -207,6 +208,12 @@ def options_for(variant, iterations, output_edge=0.0, friction=None, contact_nor
         return o.with_(bending_range_offsets=_decades_variant(variant, "bendrange_", "offsets", "0.15+0.5+1"))
     if variant in ("newton_supernodal", "newton_simplicial"):   # Newton's LDLᵀ
         return o.with_(newton_solver=variant[len("newton_"):])
+    if variant.startswith("edge_"):   # the optimization's mesh: edge length in cm, e.g. edge_2 (the default 4)
+        try:
+            edge = float(variant[len("edge_"):]) / 100.0
+        except ValueError:
+            raise ValueError(f"variant {variant!r}: edge_L needs a length L in cm, e.g. edge_2") from None
+        return o.with_(edge_length=edge)
     if variant.startswith("workers_"):   # bending candidates draped at once (candidate_workers): the same results, other times
         try:
             return o.with_(candidate_workers=int(variant[len("workers_"):]))

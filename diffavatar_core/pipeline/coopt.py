@@ -187,7 +187,7 @@ class CoOptObjective:
         o = self.opts
         self.cloth.set_control(rest=rest, bend_stiffness=bend, body_vertices=body_vertices,
                                stretch_compliance=stretch)  # ValueError: inverted
-        self.cloth.reequilibrate(self.x_warm, o.residual_tol, max_steps=o.drape_steps, iterations=o.drape_iterations,
+        self.cloth.reequilibrate(self.x_warm, o.residual_tol, max_steps=o.drape_steps, iterations=o.drape_sweeps,
                                  cancel=self.cancel)
 
     def __call__(self, params):
@@ -273,7 +273,7 @@ class CoOptObjective:
             x0 = x0 + np.random.default_rng(int(jitter)).normal(scale=FRESH_JITTER, size=x0.shape)
         self.cloth.reset(x0)
         self.cloth.sew(cancel=self.cancel)
-        r = self.cloth.drape(max_steps=max(o.drape_steps, 1), iterations=o.drape_iterations,
+        r = self.cloth.drape(max_steps=max(o.drape_steps, 1), iterations=o.drape_sweeps,
                              residual_tol=o.residual_tol, refine_iterations=120, raise_on_divergence=False,
                              cancel=self.cancel)
         if not r.converged:
@@ -336,7 +336,7 @@ class CoOptObjective:
         def from_initial(_):
             self.cloth.set_control(rest=rest, bend_stiffness=bend, body_vertices=bv, stretch_compliance=stretch)
             self.cloth.reequilibrate(self.x_initial, o.residual_tol, max_steps=o.drape_steps,
-                                     iterations=o.drape_iterations, cancel=self.cancel)
+                                     iterations=o.drape_sweeps, cancel=self.cancel)
         v_warm, v_init, kept = self._try_candidate(params, from_initial)
         self.last_initial = (v_warm, v_init)
         return kept

@@ -15,6 +15,17 @@ BENDING = ("garment", "panel", "fixed")
 STRETCH = ("fixed", "garment")
 INTERIOR_TO = ("surface", "points")
 BENDING_COMPARE = ("guided", "unguided", "asymmetric", "fresh")   # CoOptObjective.try_bending
+REFERENCE_EDGE = 0.04   # m: the mesh drape_iterations is set for (the default edge_length)
+
+
+def sweeps_for_edge(sweeps: int, edge: float) -> int:
+    """XPBD sweeps per step for a drape on a mesh of edge `edge` (m) given `sweeps` for the
+    REFERENCE_EDGE mesh: (REFERENCE_EDGE / edge)² times as many on finer meshes, as many on coarser
+    ones. Gauss–Seidel removes a constraint error's smooth part by 1 − O(h²) per sweep (h: the edge
+    over the cloth's size), so a finer cloth needs ∝ 1/h² sweeps to hang as stiff in one step: a 2 cm
+    skirt after 200 steps of 40 still fell at 1.2 m/s and Newton missed; with 160 it stood at
+    0.03 m/s and Newton converged in 61 iterations (BENCHMARKS.md stop 54)."""
+    return max(int(sweeps), int(round(sweeps * (REFERENCE_EDGE / edge) ** 2)))
 
 
 @dataclass(frozen=True)
@@ -191,6 +202,12 @@ class RecoverOptions:
                 if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
                     raise ValueError(f"recover options: {type(group).__name__.lower()}.{f.name} must be a "
                                      f"non-negative number, got {v!r}")
+
+    @property
+    def drape_sweeps(self) -> int:
+        """XPBD sweeps per step of the recovery's drapes (initial, fresh, fallback): drape_iterations
+        scaled to edge_length (sweeps_for_edge; drape_iterations itself at the default 4 cm)."""
+        return sweeps_for_edge(self.drape_iterations, self.edge_length)
 
     @classmethod
     def from_config(cls, cfg: dict | None = None, **overrides) -> "RecoverOptions":

@@ -205,13 +205,14 @@ def _fine_output(g, cage, co, fine: Garment, material, body_vertices, body_faces
 
 
 def _initial_drape(cloth, opts, cancel):
-    """The template's drape on the fitted body: drape_steps XPBD steps (1/120 s), then Newton to
+    """The template's drape on the fitted body: drape_steps XPBD steps (1/120 s, opts.drape_sweeps
+    sweeps each: more on meshes finer than 4 cm, options.sweeps_for_edge), then Newton to
     residual_tol. A drape Newton does not finish — a cloth still far from rest after drape_steps
     (a dress's long skirt on some bodies) — goes on with drape_steps more XPBD steps from where
     Newton stopped, drape_rounds rounds at most. Returns (the last DrapeResult, XPBD steps taken)."""
     steps = 0
     for _ in range(opts.drape_rounds):
-        r = cloth.drape(max_steps=max(opts.drape_steps, 1), iterations=opts.drape_iterations,
+        r = cloth.drape(max_steps=max(opts.drape_steps, 1), iterations=opts.drape_sweeps,
                         residual_tol=opts.residual_tol, refine_iterations=120, raise_on_divergence=False,
                         cancel=cancel)
         steps += r.steps

@@ -17,7 +17,7 @@ from ..pattern.garment import Garment
 from ..pattern.templates import make_template
 from ..sim.cloth import Cloth
 from ..sim.material import ClothMaterial
-from .options import RecoverOptions
+from .options import RecoverOptions, sweeps_for_edge
 from .refine import settle_carried, transfer_positions
 
 # the measurements each template's ground truth perturbs (fields of Top/SkirtMeasurements)
@@ -137,14 +137,15 @@ def _truth_cloth(g: Garment, x, body, bend_stiffness: float, compliance_scale: f
 
 
 def drape_truth(g: Garment, body, bend_stiffness: float, max_steps: int = 600, cancel=None,
-                compliance_scale: float = 1.0, contact_normals: str | None = None):
+                compliance_scale: float = 1.0, contact_normals: str | None = None, sweeps: int = 40):
     """The ground-truth drape of garment g on body (V, F): (Cloth, DrapeResult); the default
-    material's stretch compliances × compliance_scale. Raises RuntimeError when the garment did
+    material's stretch compliances × compliance_scale; sweeps: XPBD sweeps per step (40 for the
+    4 cm mesh, options.sweeps_for_edge for others, as the recovery's drapes). Raises RuntimeError when the garment did
     not stay on the body (its top sank more than MAX_TOP_DROP below where it was placed) or the
     drape did not converge."""
     cloth = _truth_cloth(g, g.x0, body, bend_stiffness, compliance_scale, contact_normals)
     cloth.sew(cancel=cancel)
-    r = cloth.drape(max_steps=max_steps, iterations=40, residual_tol=1e-7, refine_iterations=120, raise_on_divergence=False,
+    r = cloth.drape(max_steps=max_steps, iterations=sweeps, residual_tol=1e-7, refine_iterations=120, raise_on_divergence=False,
                     cancel=cancel)
     top0, top = float(np.max(g.x0[:, 1])), float(np.max(np.asarray(cloth.x)[:, 1]))
     if top < top0 - MAX_TOP_DROP:   # checked first: it also explains a drape that did not converge
@@ -301,7 +302,7 @@ def make_case(template: str = "skirt", seed: int = 0, bend_stiffness: float | No
     bv, bf = model.pose(params), np.asarray(model.faces)
     g = make_template(template, landmarks=model.landmarks(params), edge_length=edge, **meas)
     cloth, r = drape_truth(g, (bv, bf), k, max_steps, compliance_scale=compliance_scale,
-                           contact_normals=contact_normals)
+                           contact_normals=contact_normals, sweeps=sweeps_for_edge(40, edge))
     x = np.array(cloth.x)
     drape = {"steps": r.steps, "residual": r.residual, "max_penetration_m": r.max_penetration}
     if truth_edge is not None:
