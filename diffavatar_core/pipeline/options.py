@@ -22,9 +22,10 @@ def sweeps_for_edge(sweeps: int, edge: float) -> int:
     """XPBD sweeps per step for a drape on a mesh of edge `edge` (m) given `sweeps` for the
     REFERENCE_EDGE mesh: (REFERENCE_EDGE / edge)² times as many on finer meshes, as many on coarser
     ones. Gauss–Seidel removes a constraint error's smooth part by 1 − O(h²) per sweep (h: the edge
-    over the cloth's size), so a finer cloth needs ∝ 1/h² sweeps to hang as stiff in one step: a 2 cm
-    skirt after 200 steps of 40 still fell at 1.2 m/s and Newton missed; with 160 it stood at
-    0.03 m/s and Newton converged in 61 iterations (BENCHMARKS.md stop 54)."""
+    over the cloth's size), so a finer cloth needs ∝ 1/h² sweeps to hang as stiff in one step: the
+    benchmark's skirt 103 on a 2 cm mesh after 200 steps of 40 still fell at 1.2 m/s and its
+    recovery failed in the initial drape; with 160 it stood at 0.03 m/s and Newton converged in 61
+    iterations (BENCHMARKS.md stop 54)."""
     return max(int(sweeps), int(round(sweeps * (REFERENCE_EDGE / edge) ** 2)))
 
 

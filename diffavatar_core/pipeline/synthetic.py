@@ -140,9 +140,9 @@ def drape_truth(g: Garment, body, bend_stiffness: float, max_steps: int = 600, c
                 compliance_scale: float = 1.0, contact_normals: str | None = None, sweeps: int = 40):
     """The ground-truth drape of garment g on body (V, F): (Cloth, DrapeResult); the default
     material's stretch compliances × compliance_scale; sweeps: XPBD sweeps per step (40 for the
-    4 cm mesh, options.sweeps_for_edge for others, as the recovery's drapes). Raises RuntimeError when the garment did
-    not stay on the body (its top sank more than MAX_TOP_DROP below where it was placed) or the
-    drape did not converge."""
+    4 cm mesh, options.sweeps_for_edge for others, as the recovery's drapes). Raises RuntimeError
+    when the garment did not stay on the body (its top sank more than MAX_TOP_DROP below where it
+    was placed) or the drape did not converge."""
     cloth = _truth_cloth(g, g.x0, body, bend_stiffness, compliance_scale, contact_normals)
     cloth.sew(cancel=cancel)
     r = cloth.drape(max_steps=max_steps, iterations=sweeps, residual_tol=1e-7, refine_iterations=120, raise_on_divergence=False,
