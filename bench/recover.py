@@ -281,6 +281,10 @@ def run_case(case, variant, iterations, output_edge=0.0, friction=None, contact_
         "output_drape": m.get("output_drape"),
         "measurement_fit": m.get("measurement_fit"),
         "measurement_fit_bending": m.get("measurement_fit_bending"),
+        # the range's judged offsets [d decades, k_b N·m, φ judged, φ against, verdict] and φ at the recovered k_b:
+        # what another point estimate within the range (its centre, a fit of φ over log k_b) would be computed from
+        "bending_range_judged": (m.get("bending_range") or {}).get("judged"),
+        "bending_range_value": (m.get("bending_range") or {}).get("value"),
         "template_sizing": m.get("template_sizing"),
     }
 
