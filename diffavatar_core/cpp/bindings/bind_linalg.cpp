@@ -6,11 +6,10 @@
 #include <pybind11/pybind11.h>
 
 #include <Eigen/SparseCholesky>
-#include <algorithm>
 #include <stdexcept>
 #include <string>
-#include <vector>
 
+#include "linalg/sparsity_pattern.hpp"
 #include "linalg/supernodal_ldlt.hpp"
 
 namespace py = pybind11;
@@ -23,15 +22,8 @@ using Matrix = Eigen::SparseMatrix<double>;
 template <class F>
 struct Checked {  // F with the pattern it analysed and whether its last factorization succeeded
   F f;
-  std::vector<int> outer, inner;
-  bool analysed = false, factorized = false;
-
-  bool same_pattern(const Matrix& A) const {
-    return analysed && A.rows() == A.cols() && static_cast<std::size_t>(A.outerSize() + 1) == outer.size() &&
-           static_cast<std::size_t>(A.nonZeros()) == inner.size() &&
-           std::equal(outer.begin(), outer.end(), A.outerIndexPtr()) &&
-           std::equal(inner.begin(), inner.end(), A.innerIndexPtr());
-  }
+  SparsityPattern pattern;
+  bool factorized = false;
 };
 
 template <class F>
@@ -43,14 +35,12 @@ void bind_ldlt(py::module_& m, const char* name, const char* doc) {
              if (A.rows() != A.cols()) throw std::invalid_argument("analyze_pattern: A must be square");
              A.makeCompressed();
              c.f.analyzePattern(A);
-             c.outer.assign(A.outerIndexPtr(), A.outerIndexPtr() + A.outerSize() + 1);
-             c.inner.assign(A.innerIndexPtr(), A.innerIndexPtr() + A.nonZeros());
-             c.analysed = true;
+             c.pattern.assign(A);
              c.factorized = false;
            }, py::arg("A"), py::call_guard<py::gil_scoped_release>())
       .def("factorize", [](C& c, Matrix A) {
              A.makeCompressed();
-             if (!c.same_pattern(A))
+             if (A.rows() != A.cols() || !c.pattern.matches(A))
                throw std::invalid_argument("factorize: A is not the pattern analyze_pattern saw (analyze it first)");
              c.f.factorize(A);
              c.factorized = c.f.info() == Eigen::Success;
@@ -59,9 +49,9 @@ void bind_ldlt(py::module_& m, const char* name, const char* doc) {
                              "Whether the last factorize() succeeded (False after a zero pivot).")
       .def("solve", [](const C& c, const Eigen::VectorXd& b) -> Eigen::VectorXd {
              if (!c.factorized) throw std::runtime_error("solve: no successful factorization (zero pivot, or none yet)");
-             if (b.size() != static_cast<Eigen::Index>(c.outer.size()) - 1)
+             if (b.size() != c.pattern.cols())
                throw std::invalid_argument("solve: b has " + std::to_string(b.size()) + " entries, the matrix " +
-                                           std::to_string(c.outer.size() - 1) + " rows");
+                                           std::to_string(c.pattern.cols()) + " rows");
              return Eigen::VectorXd(c.f.solve(b));
            }, py::arg("b"), py::call_guard<py::gil_scoped_release>());
 }

@@ -147,17 +147,11 @@ void SupernodalLdlt::analyzePattern(const Matrix& A) {
   d_.resize(n_);
   info_ = Eigen::Success;
   factorized_ = false;
-  outer_.assign(A.outerIndexPtr(), A.outerIndexPtr() + A.outerSize() + 1);
-  inner_.assign(A.innerIndexPtr(), A.innerIndexPtr() + A.nonZeros());
+  pattern_.assign(A);
 }
 
 void SupernodalLdlt::factorize(const Matrix& A) {
-  const bool same = A.isCompressed() && A.rows() == n_ && A.cols() == n_ &&
-                    static_cast<std::size_t>(A.outerSize() + 1) == outer_.size() &&
-                    static_cast<std::size_t>(A.nonZeros()) == inner_.size() &&
-                    std::equal(outer_.begin(), outer_.end(), A.outerIndexPtr()) &&
-                    std::equal(inner_.begin(), inner_.end(), A.innerIndexPtr());
-  if (!same) throw std::invalid_argument("SupernodalLdlt::factorize: not the pattern analyzePattern saw");
+  if (A.rows() != n_ || !pattern_.matches(A)) throw std::invalid_argument("SupernodalLdlt::factorize: not the pattern analyzePattern saw");
   const int ns = static_cast<int>(sn_.size());
   const double* val = A.valuePtr();
   std::vector<Eigen::MatrixXd> update(ns);  // each supernode's Schur complement, for its parent

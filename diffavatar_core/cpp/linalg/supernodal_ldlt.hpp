@@ -12,6 +12,8 @@
 #include <Eigen/SparseCore>
 #include <vector>
 
+#include "linalg/sparsity_pattern.hpp"
+
 namespace diffavatar {
 
 class SupernodalLdlt {
@@ -49,7 +51,7 @@ class SupernodalLdlt {
   Eigen::VectorXd d_;                   // D, permuted order
   Eigen::ComputationInfo info_ = Eigen::Success;
   bool factorized_ = false;  // a factorize() succeeded since the last analyzePattern()
-  std::vector<int> outer_, inner_;  // the analysed pattern
+  SparsityPattern pattern_;  // the analysed pattern
 };
 
 }  // namespace diffavatar

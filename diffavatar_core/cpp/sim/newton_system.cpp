@@ -60,11 +60,7 @@ const NewtonSystem::Matrix& NewtonSystem::assemble(const EnergyContext& ctx, con
 }
 
 bool NewtonSystem::factorize(const Matrix& A) {
-  const int* o = A.outerIndexPtr();
-  const int* in = A.innerIndexPtr();
-  const bool same = outer_.size() == static_cast<std::size_t>(A.outerSize() + 1) &&
-                    inner_.size() == static_cast<std::size_t>(A.nonZeros()) && std::equal(outer_.begin(), outer_.end(), o) &&
-                    std::equal(inner_.begin(), inner_.end(), in);
+  const bool same = pattern_.matches(A);
   const bool fresh = supernodal_ ? !supernodal_ldlt_ : !simplicial_;
   if (supernodal_ && !supernodal_ldlt_) supernodal_ldlt_ = std::make_unique<SupernodalLdlt>();
   if (!supernodal_ && !simplicial_) simplicial_ = std::make_unique<Eigen::SimplicialLDLT<Matrix>>();
@@ -73,8 +69,7 @@ bool NewtonSystem::factorize(const Matrix& A) {
       supernodal_ldlt_->analyzePattern(A);
     else
       simplicial_->analyzePattern(A);
-    outer_.assign(o, o + A.outerSize() + 1);
-    inner_.assign(in, in + A.nonZeros());
+    pattern_.assign(A);
   }
   if (supernodal_) {
     supernodal_ldlt_->factorize(A);
@@ -93,8 +88,7 @@ void NewtonSystem::set_supernodal(bool on) {
   supernodal_ = on;
   simplicial_.reset();
   supernodal_ldlt_.reset();
-  outer_.clear();
-  inner_.clear();
+  pattern_.clear();
 }
 
 }  // namespace diffavatar

@@ -12,6 +12,7 @@
 #include <memory>
 #include <vector>
 
+#include "linalg/sparsity_pattern.hpp"
 #include "linalg/supernodal_ldlt.hpp"
 #include "sim/cloth_energy.hpp"
 
@@ -55,7 +56,7 @@ class NewtonSystem {
   bool supernodal_ = false;
   std::unique_ptr<Eigen::SimplicialLDLT<Matrix>> simplicial_;
   std::unique_ptr<SupernodalLdlt> supernodal_ldlt_;
-  std::vector<int> outer_, inner_;  // the pattern the current factorization's symbolic analysis is of
+  SparsityPattern pattern_;  // the pattern the current factorization's symbolic analysis is of
 };
 
 }  // namespace diffavatar
