@@ -29,6 +29,17 @@ def main(argv=None) -> int:
     except (ValueError, FileNotFoundError) as exc:
         print(f"diffavatar: error: {exc}", file=sys.stderr)
         return 2
+    except OSError as exc:   # a file or directory that cannot be read or written: named, not a traceback
+        print(f"diffavatar: error: {_os_error(exc)}", file=sys.stderr)
+        return 2
+
+
+def _os_error(exc: OSError) -> str:
+    """'<path>: <reason>' of an OSError (e.g. 'out/x: Is a directory'), or its text."""
+    names = [n for n in (exc.filename, exc.filename2) if n is not None]
+    if names and exc.strerror:
+        return f"{' -> '.join(map(str, names))}: {exc.strerror}"
+    return str(exc) or type(exc).__name__
 
 
 if __name__ == "__main__":

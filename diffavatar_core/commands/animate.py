@@ -4,7 +4,6 @@ rest shape, the recovered material and body, starting from the recovered drape (
 without it: --garment, a built-in template draped on the default body. Writes the OBJ sequence,
 animation.glb, positions.npz, a contact sheet of frames and animate.json."""
 import json
-import pathlib
 
 
 def register(sub) -> None:
@@ -31,9 +30,9 @@ def _run(args) -> int:
     from ..body import BodyModel
     from ..render import contact_sheet, orbit_cameras, render
     from ..sim import drape_job
+    from . import check_out_dir, write_failed
     t0 = time.perf_counter()
-    out = pathlib.Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    out = check_out_dir(args.out)   # before the simulation, not after
     motion = args.motion if args.motion in MOTIONS else load_keyframes(args.motion)
     if args.result_dir:
         from ..pipeline.assets import load_result
@@ -51,17 +50,21 @@ def _run(args) -> int:
         params = model.zero_params()
         source = args.garment
     res = animate(cloth, model, params, motion, args.frames, fps=args.fps, cycles=args.cycles)
-    files = write_animation(out, res.garment, g["faces"], res.body, model.faces, fps=args.fps)
-    cams = orbit_cameras([(res.body[0], model.faces), (res.garment[0], g["faces"])], views=("front",))
-    picks = np.linspace(0, args.frames - 1, min(8, args.frames)).astype(int)
-    images = [render([(res.body[i], model.faces, (0.85, 0.7, 0.6)), (res.garment[i], g["faces"], (0.3, 0.5, 0.85))],
-                     cams["front"], 192) for i in picks]
-    contact_sheet(images, out / "frames.png", labels=[f"frame {i}" for i in picks])
-    info = {"garment": source, "motion": args.motion, "frames": args.frames, "fps": args.fps,
-            "cycles": args.cycles,
-            "drape_converged": r.converged, "max_penetration_mm": 1e3 * res.max_penetration,
-            "max_distance_from_body_m": res.max_distance, "glb": str(files["glb"]),
-            "wall_s": time.perf_counter() - t0}
-    (out / "animate.json").write_text(json.dumps(info, indent=2))
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        files = write_animation(out, res.garment, g["faces"], res.body, model.faces, fps=args.fps)
+        cams = orbit_cameras([(res.body[0], model.faces), (res.garment[0], g["faces"])], views=("front",))
+        picks = np.linspace(0, args.frames - 1, min(8, args.frames)).astype(int)
+        images = [render([(res.body[i], model.faces, (0.85, 0.7, 0.6)), (res.garment[i], g["faces"], (0.3, 0.5, 0.85))],
+                         cams["front"], 192) for i in picks]
+        contact_sheet(images, out / "frames.png", labels=[f"frame {i}" for i in picks])
+        info = {"garment": source, "motion": args.motion, "frames": args.frames, "fps": args.fps,
+                "cycles": args.cycles,
+                "drape_converged": r.converged, "max_penetration_mm": 1e3 * res.max_penetration,
+                "max_distance_from_body_m": res.max_distance, "glb": str(files["glb"]),
+                "wall_s": time.perf_counter() - t0}
+        (out / "animate.json").write_text(json.dumps(info, indent=2))
+    except OSError as exc:   # disk full, the directory removed meanwhile, ...: named, not a traceback
+        raise write_failed(args.out, exc, "writing the animation") from None
     print(json.dumps(info, indent=2))
     return 0

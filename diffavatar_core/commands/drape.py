@@ -1,6 +1,5 @@
 """`diffavatar drape --garment NAME --out DIR`: sew and drape a garment on the default body."""
 import json
-import pathlib
 
 
 def register(sub) -> None:
@@ -25,8 +24,13 @@ def register(sub) -> None:
 
 def _run(args) -> int:
     from ..sim import drape_job
-    info = drape_job.run(pathlib.Path(args.out), args.garment, args.max_steps, args.iterations,
-                         refine=not args.no_refine, edge=args.edge, substeps=args.substeps,
-                         sweeps=args.sweeps, newton_solver=args.newton_solver)
+    from . import check_out_dir, write_failed
+    out = check_out_dir(args.out)   # before the drape, not after
+    try:
+        info = drape_job.run(out, args.garment, args.max_steps, args.iterations,
+                             refine=not args.no_refine, edge=args.edge, substeps=args.substeps,
+                             sweeps=args.sweeps, newton_solver=args.newton_solver)
+    except OSError as exc:   # the drape reads no files: an OSError is the outputs' writing
+        raise write_failed(args.out, exc, "writing the drape") from None
     print(json.dumps(info, indent=2))
     return 0 if not info["diverged"] else 1

@@ -27,6 +27,8 @@ def load_scan(path):
 def run(args) -> int:
     from ..body import BodyModel
     from ..body.fitting import FitOptions, fit_body
+    from . import check_out_dir, write_failed
+    out = check_out_dir(args.out)   # before the fit, not after
     V, F = load_scan(args.scan)
     model = BodyModel.default()
     opts = FitOptions(iterations=args.iterations, seed=args.seed)
@@ -37,9 +39,11 @@ def run(args) -> int:
     res = fit_body(V, F, model, units=args.units, up=args.up,
                    garment_only=args.garment_only or bool(args.garment_type), garment_type=args.garment_type,
                    options=opts, progress=progress)
-    out = pathlib.Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    model.export_obj(out / "body.obj", res.params)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        model.export_obj(out / "body.obj", res.params)
+    except OSError as exc:
+        raise write_failed(args.out, exc, "writing the body fit") from None
     doc = {
         "model": model.name,
         "frame": "core: metres, Y up, body facing +Z, +X = body's left",
@@ -50,7 +54,10 @@ def run(args) -> int:
         "params": res.params.to_dict(model.joint_names),
         "landmarks": model.landmarks(res.params).to_dict(),
     }
-    (out / "body.json").write_text(json.dumps(doc, indent=2))
+    try:
+        (out / "body.json").write_text(json.dumps(doc, indent=2))
+    except OSError as exc:
+        raise write_failed(args.out, exc, "writing the body fit") from None
     print(json.dumps({"body_obj": str(out / "body.obj"), "body_json": str(out / "body.json"),
                       "rms_m": res.rms, "height_m": doc["landmarks"]["height"]}, indent=2))
     return 0

@@ -6,9 +6,11 @@ import json
 def run(args) -> int:
     from ..pattern.cage import build_cage
     from ..pattern.export import write_all
+    from . import check_out_dir, write_failed
     sources = [s for s in (args.name, args.from_obj, args.from_garmentcode) if s]
     if len(sources) != 1:
         raise ValueError("pattern: give exactly one of NAME, --from-obj FILE, --from-garmentcode FILE")
+    check_out_dir(args.out)
     if args.from_obj:
         from ..pattern.obj_import import load_obj_pattern
         g = load_obj_pattern(args.from_obj)
@@ -19,7 +21,10 @@ def run(args) -> int:
         from ..pattern.templates import make_template
         g = make_template(args.name, edge_length=args.edge_length)
     cage = build_cage(g, args.handle_angle)
-    paths = write_all(args.out, g, cage.handles)
+    try:
+        paths = write_all(args.out, g, cage.handles)
+    except OSError as exc:
+        raise write_failed(args.out, exc, "writing the pattern") from None
     print(json.dumps({"name": g.name, "panels": g.panel_names, "vertices": len(g.rest),
                       "triangles": len(g.faces), "seam_pairs": len(g.seams), "handles": len(cage.handles),
                       "area_m2": round(g.total_area(), 6), "boundaries": sorted(g.boundaries),

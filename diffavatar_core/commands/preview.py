@@ -7,11 +7,16 @@ from ..render import preview_side_by_side, ssim_metric
 
 
 def run(args) -> int:
+    from . import check_out_file, write_failed
+    check_out_file(args.out)   # before loading and rendering
     scan = load_mesh(args.scan)
     garment = load_mesh(args.garment)
     body = load_mesh(args.body) if args.body else None
     result = [garment] + ([body] if body is not None else [])
-    preview_side_by_side(scan, result, args.out, size=args.size)
+    try:
+        preview_side_by_side(scan, result, args.out, size=args.size)
+    except OSError as exc:
+        raise write_failed(args.out, exc, "writing the preview") from None
     out = {"preview": str(args.out), "ssim": ssim_metric(scan, garment, body, size=args.size),
            "ssim_views": ["front", "right", "back", "left"]}
     print(json.dumps(out, indent=2))

@@ -59,6 +59,8 @@ class ProgressBar:
 
 def _run(args) -> int:
     from ..config import load_config
+    from . import check_out_dir, write_failed
+    check_out_dir(args.out)   # before the minutes of recovery, not after
     from ..pipeline import RecoverOptions, recover
     from ..pipeline.output import write_result
     cfg = load_config(args.config)
@@ -71,7 +73,10 @@ def _run(args) -> int:
     finally:
         if bar is not None:
             bar.close()
-    out = write_result(result, args.out, scan=result.scan_mesh)
+    try:
+        out = write_result(result, args.out, scan=result.scan_mesh)
+    except OSError as exc:   # disk full, the directory removed meanwhile, ...: named, not a traceback
+        raise write_failed(args.out, exc, "writing the recovery's result") from None
     m = result.metrics
     fit, sizing = m.get("measurement_fit") or {}, m.get("template_sizing") or {}
     print(json.dumps({

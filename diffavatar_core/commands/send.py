@@ -3,6 +3,8 @@ diffavatar_node (ROS 2), show progress, write each result into DIR/<job_id>/."""
 
 
 def run(args) -> int:
+    from . import check_out_dir
+    check_out_dir(args.out)   # before the jobs run: their results are written there as they arrive
     try:
         from diffavatar_ros.client import send
     except ImportError as exc:

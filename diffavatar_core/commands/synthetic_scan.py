@@ -23,9 +23,14 @@ def register(sub) -> None:
 
 def _run(args) -> int:
     from ..pipeline.synthetic import make_case, write_case
+    from . import check_out_dir, write_failed
+    check_out_dir(args.out)   # before the drape, not after
     case = make_case(args.template, seed=args.seed, bend_stiffness=args.bend, edge=args.edge, units=args.units,
                      up=args.up, truth_edge=args.truth_edge, compliance_scale=args.compliance_scale)
-    path = write_case(case, args.out)
+    try:
+        path = write_case(case, args.out)
+    except OSError as exc:
+        raise write_failed(args.out, exc, "writing the synthetic scan") from None
     print(json.dumps({"scan": str(path), "vertices": int(len(case.scan_vertices)),
                       "faces": int(len(case.scan_faces)), **case.truth_json()}, indent=2))
     return 0
