@@ -4,6 +4,7 @@ Lengths in m, bending stiffness in N·m, angles in rad."""
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass, field, fields, replace
 
 from ..config import load_config
@@ -48,6 +49,28 @@ class StepSizes:
     shape: float = 0.02
     pose: float = 0.002
     measurements: float = 0.01
+
+
+GROUPS = {"weights": Weights, "step_sizes": StepSizes}   # the nested groups of RecoverOptions
+
+
+def _group(name: str, base, override, where: str = "recover options", path: str = ""):
+    """The group `name` (Weights / StepSizes) with `override` merged over `base` (a group instance
+    or a mapping of its fields): a mapping overrides the named fields and keeps the others, an
+    instance replaces the group. Unknown fields and anything but a mapping are refused by name."""
+    kind, path = GROUPS[name], path or name
+    if isinstance(override, kind):
+        return override
+    if not isinstance(override, dict):
+        raise ValueError(f"{where}: {path} must be a mapping of {', '.join(f.name for f in fields(kind))}, "
+                         f"got {type(override).__name__}")
+    known = [f.name for f in fields(kind)]
+    unknown = [str(k) for k in override if k not in known]
+    if unknown:
+        raise ValueError(f"{where}: unknown key(s) {', '.join(f'{path}.{k}' for k in sorted(unknown))} "
+                         f"(known: {', '.join(known)})")
+    values = base.__dict__ if isinstance(base, kind) else dict(base or {})
+    return kind(**{**values, **override})
 
 
 @dataclass(frozen=True)
@@ -132,7 +155,8 @@ class RecoverOptions:
             bad("length_measure", "must be raw or resampled")
         kg = self.guided_stiffness   # stored as the tuple of stiffnesses to try: a number k is (k,), 0 is ()
         seq = tuple(kg) if isinstance(kg, (list, tuple)) else (kg,)
-        if not seq or any(isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0
+        stored_off = isinstance(kg, tuple) and not kg   # 0 as stored: with_() re-validates it
+        if (not seq and not stored_off) or any(isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0
                           or (v == 0 and len(seq) > 1) for v in seq):
             bad("guided_stiffness", "must be a number >= 0 (0: off) or a non-empty list of positive numbers")
         object.__setattr__(self, "guided_stiffness", tuple(float(v) for v in seq if v > 0))
@@ -163,9 +187,6 @@ class RecoverOptions:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
                 bad(name, "must be a number >= 0")
-        if self.measurement_fit_iterations and not self.step_sizes.measurements > 0:
-            raise ValueError("recover options: step_sizes.measurements must be positive when "
-                             f"measurement_fit_iterations is {self.measurement_fit_iterations}")
         for name in ("optimize_body", "masses_follow_rest", "template_sizing", "measurement_fit_refit"):
             if not isinstance(getattr(self, name), bool):
                 bad(name, "must be true or false")
@@ -197,12 +218,29 @@ class RecoverOptions:
             bad("units", "must be m, cm or mm")
         if self.up not in ("y", "z"):
             bad("up", "must be y or z")
-        for group in (self.weights, self.step_sizes):
+        for name, kind in GROUPS.items():
+            if not isinstance(getattr(self, name), kind):
+                bad(name, f"must be a {kind.__name__} (or, to from_config / with_, a mapping of its fields)")
+        t = self.template
+        if t is not None:
+            if not isinstance(t, (str, os.PathLike)) or not str(t):
+                bad("template", "must be a built-in template name or a template file path")
+            from ..pattern.templates import TEMPLATES
+            if str(t) not in TEMPLATES:
+                if os.path.isdir(t):
+                    bad("template", "is a directory, not a template file (OBJ with UVs or GarmentCode JSON)")
+                if not os.path.isfile(t):
+                    bad("template", f"is neither a built-in template ({', '.join(sorted(TEMPLATES))}) nor an "
+                                    "existing file")
+        for name in GROUPS:
+            group = getattr(self, name)
             for f in fields(group):
                 v = getattr(group, f.name)
                 if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
-                    raise ValueError(f"recover options: {type(group).__name__.lower()}.{f.name} must be a "
-                                     f"non-negative number, got {v!r}")
+                    raise ValueError(f"recover options: {name}.{f.name} must be a non-negative number, got {v!r}")
+        if self.measurement_fit_iterations and not self.step_sizes.measurements > 0:
+            raise ValueError("recover options: step_sizes.measurements must be positive when "
+                             f"measurement_fit_iterations is {self.measurement_fit_iterations}")
 
     @property
     def drape_sweeps(self) -> int:
@@ -220,17 +258,16 @@ class RecoverOptions:
         unknown = set(section) - known
         if unknown:
             raise ValueError(f"config: unknown key(s) recover.{', recover.'.join(sorted(unknown))}")
-        w = section.pop("weights", {}) or {}
-        s = section.pop("step_sizes", {}) or {}
-        try:
-            section["weights"] = Weights(**w)
-            section["step_sizes"] = StepSizes(**s)
-        except TypeError as exc:
-            raise ValueError(f"config: recover.weights / recover.step_sizes: {exc}") from None
-        section.update({k: v for k, v in overrides.items() if v is not None})
-        unknown = set(section) - known
+        for name in GROUPS:   # the configured group, its fields named in the config over the defaults
+            section[name] = _group(name, GROUPS[name](), section.get(name) or {}, "config", f"recover.{name}")
+        unknown = set(overrides) - known | ({"config"} & set(overrides))   # the loaded config is `cfg`
         if unknown:
             raise ValueError(f"recover options: unknown option(s) {', '.join(sorted(unknown))}")
+        for k, v in overrides.items():
+            if v is None:
+                continue
+            # a nested group's override (a mapping of some of its fields) is merged over the configured group
+            section[k] = _group(k, section[k], v) if k in GROUPS else v
         return cls(config=cfg, **section)
 
     @classmethod
@@ -254,4 +291,12 @@ class RecoverOptions:
         return cls.from_config(**d)
 
     def with_(self, **changes) -> "RecoverOptions":
+        """A copy with `changes`; weights / step_sizes may be given as a mapping of some of their
+        fields, merged over this object's. Unknown names are refused by name (ValueError)."""
+        unknown = set(changes) - {f.name for f in fields(self)}
+        if unknown:
+            raise ValueError(f"recover options: unknown option(s) {', '.join(sorted(unknown))}")
+        for k in GROUPS:
+            if k in changes:
+                changes[k] = _group(k, getattr(self, k), changes[k])
         return replace(self, **changes)
