@@ -542,6 +542,14 @@ def _recover(scan, opts: RecoverOptions, ctl: "_Control", body_model, t0: float)
                           name=g_out.name)
         warnings.append(f"the subject faces {np.degrees(yaw):.0f}° from +Z about the vertical: the recovery ran "
                         f"turned to face +Z and its outputs are turned back (metrics.facing_yaw_rad)")
+    origin = given.transform.origin   # a scan far from its file's origin ran centred (scan/frame.py)
+    metrics["scan_origin_m"] = origin.tolist()
+    if origin.any():   # back where the scan is: the assets overlay it as given
+        x_out, body_final, scan_vertices = x_out + origin, body_final + origin, scan_vertices + origin
+        body_out = body_out.copy()
+        body_out.translation = np.asarray(body_out.translation, np.float64) + origin
+        g_final = Garment(rest_out, g_out.faces, x_out, g_out.seams, g_out.panel, g_out.panels, g_out.boundaries,
+                          name=g_out.name)
     bend = np.asarray(co.bend_stiffness, float)
     mat = MaterialAssets(bending_stiffness=float(np.exp(np.mean(np.log(bend)))),
                          panel_bending_stiffness=bend.copy() if opts.bending == "panel" else np.zeros(0),

@@ -36,7 +36,7 @@ from . import cleaning
 from .errors import (DegenerateScanError, GarmentTypeMissingError, ImplausibleSizeError, LabelError,
                      NoGarmentError, ScanFormatError, TooLargeError, UnknownGarmentTypeError,
                      UnknownTemplateError)
-from .frame import ScanTransform, check_plausible_size
+from .frame import ScanTransform, centring_origin, check_plausible_size
 from .labels import LabelMap
 from .loading import RawScan, read_scan_file, scan_from_arrays, scan_from_message
 
@@ -265,6 +265,10 @@ def check_scan(scan, units: str = "m", up: str = "y", label=None, garment_type: 
     F = raw.faces
     used = np.zeros(n, bool)
     used[F.ravel()] = True
+    origin = centring_origin(V[used]) if used.any() else np.zeros(3)
+    if origin.any():   # far from the file's origin: the core frame centred on the subject (frame.py)
+        tf = tf.shifted(origin)
+        V = np.ascontiguousarray(tf.to_core(raw.vertices))
     Vu = V[used]
     try:
         height = check_plausible_size(Vu, tf, opt.min_height, opt.max_height)

@@ -34,3 +34,35 @@ def test_options_are_case_and_space_tolerant_and_serialisable():
     assert (t.units, t.up, t.scale) == ("cm", "z", 0.01)
     d = t.to_dict()
     assert d["scale_m_per_unit"] == 0.01 and d["rotation"][1] == [0.0, 0.0, 1.0]
+
+
+@pytest.mark.parametrize("up", ["y", "z"])
+def test_a_shifted_transform_round_trips_and_turns_with_its_origin(up):
+    """p_core = scale·R·p − origin: to_scan inverts it, and turned(Q) is the same map followed by Q
+    (the origin turned with the frame), so results turned back and shifted back land on the scan."""
+    from diffavatar_core.pipeline.facing import yaw_rotation
+    t = ScanTransform.from_options("cm", up).shifted([30.0, 2.0, -40.0])
+    P = np.random.default_rng(2).normal(size=(50, 3)) * 100 + 3000.0
+    np.testing.assert_allclose(t.to_core(P), 0.01 * (P @ t.rotation.T) - [30.0, 2.0, -40.0], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(t.to_scan(t.to_core(P)), P, rtol=0, atol=1e-9)
+    Q = yaw_rotation(0.7)
+    tq = t.turned(Q)
+    np.testing.assert_allclose(tq.to_core(P), t.to_core(P) @ Q.T, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(tq.to_scan(tq.to_core(P)), P, rtol=0, atol=1e-9)
+    assert t.to_dict()["origin_m"] == [30.0, 2.0, -40.0]
+
+
+def test_a_scan_near_its_origin_keeps_its_coordinates_and_a_far_one_stands_on_the_floor_at_0():
+    """centring_origin: zero (no shift, the converted coordinates bit for bit) within FAR_FROM_ORIGIN;
+    beyond it the floor below the subject, in whole metres, so the shifted subject stands as one near
+    the origin does (a 1.7 m column of points, its lowest at the floor)."""
+    from diffavatar_core.scan.frame import FAR_FROM_ORIGIN, centring_origin
+    rng = np.random.default_rng(3)
+    person = rng.uniform([-0.25, 0.0, -0.15], [0.25, 1.7, 0.15], size=(2000, 3))
+    assert not centring_origin(person).any()
+    assert not centring_origin(person + [FAR_FROM_ORIGIN - 0.5, 0.0, -(FAR_FROM_ORIGIN - 0.5)]).any()
+    for offset in ([30.2, 0.0, 0.0], [0.0, -12.0, 0.0], [-3.4, 5.1, 250.0]):
+        o = centring_origin(person + offset)
+        np.testing.assert_array_equal(o, np.round(offset))
+        shifted = person + offset - o
+        assert abs(np.percentile(shifted[:, 1], 1.0)) < 0.5 and np.abs(np.median(shifted[:, [0, 2]], axis=0)).max() < 0.5
