@@ -8,12 +8,21 @@ import numpy as np
 
 def load_mesh(path: str | pathlib.Path) -> tuple[np.ndarray, np.ndarray]:
     """(V: (N, 3) float64, F: (M, 3) int64) of a triangle mesh file, vertices as stored (no
-    merging, no reordering); raises ValueError naming the file if it holds no triangles."""
+    merging, no reordering); raises ValueError naming the file if it cannot be read or holds no
+    triangles. A file starting with the PLY magic line is read as PLY whatever its name (a PLY
+    saved as .obj read as OBJ held no triangles)."""
     import trimesh
     path = pathlib.Path(path)
     if not path.exists():
         raise FileNotFoundError(f"{path}: no such file")
-    m = trimesh.load(str(path), force="mesh", process=False)
+    if path.is_dir():
+        raise ValueError(f"{path}: is a directory, not a mesh file")
+    with open(path, "rb") as fh:
+        is_ply = fh.read(5).startswith((b"ply\n", b"ply\r\n"))
+    try:
+        m = trimesh.load(str(path), file_type="ply" if is_ply else None, force="mesh", process=False)
+    except Exception as exc:  # trimesh raises many types for unreadable files
+        raise ValueError(f"{path}: cannot be read as a triangle mesh ({type(exc).__name__}: {exc})") from None
     if not hasattr(m, "faces") or len(m.faces) == 0:
         raise ValueError(f"{path}: holds no triangle mesh")
     return np.asarray(m.vertices, np.float64), np.asarray(m.faces, np.int64)

@@ -50,8 +50,9 @@ class FaceIndexError(ScanError):
 
 
 class LabelError(ScanError):
-    """Per-vertex labels are malformed (wrong length, not integers, a value naming no class of
-    the scan's label_names), or a label name is unknown or not a garment."""
+    """Per-vertex (or a PLY's per-face) labels are malformed (wrong length, not integers, out of
+    a class value's range, a value naming no class of the scan's label_names, per-vertex and
+    per-face labels that disagree), or a label name is unknown or not a garment."""
     code = "BAD_LABELS"
 
 

@@ -1,9 +1,11 @@
-"""Reading segmented scans: PLY (ascii or binary, per-vertex `label` property), OBJ (and any
-other triangle format trimesh reads, without labels), plain arrays, and the flat arrays of a
-ROS SegmentedScan message. Everything is validated here, in the scan's own units and frame;
-conversion to the core frame happens in preprocessing."""
+"""Reading segmented scans: PLY (ascii or binary, per-vertex `label` property, or per-face
+`label` converted to per-vertex labels), OBJ (and any other triangle format trimesh reads,
+without labels; a file's format is its content's, a PLY named .obj is read as PLY), plain
+arrays, and the flat arrays of a ROS SegmentedScan message. Everything is validated here, in the
+scan's own units and frame; conversion to the core frame happens in preprocessing."""
 from __future__ import annotations
 
+import dataclasses
 import pathlib
 from dataclasses import dataclass
 
@@ -19,6 +21,9 @@ LABEL_PROPERTIES = ("label", "labels")
 SEGMENTATION_PROPERTIES = ("class", "classes", "class_id", "label_id", "segment", "segments", "segment_id",
                            "segmentation", "semantic", "semantics", "semantic_id", "part", "parts", "part_id",
                            "category", "category_id", "seg")
+#: A class value (label) must lie in this range (int32's): a larger one is garbage (a float or a
+#: uint64 read as a label), and is reported as given, never after a wrapping cast.
+LABEL_RANGE = (-2 ** 31, 2 ** 31 - 1)
 #: Scan units; a coordinate this large is garbage (a binary file read with the wrong layout), and
 #: the squared distances of cleaning would overflow.
 MAX_COORDINATE = 1e100
@@ -31,13 +36,17 @@ class RawScan:
     vertices: (V, 3) float64 (scan units); faces: (F, 3) int64 indices into vertices;
     labels: (V,) int64 per-vertex class values, or None for a garment-only scan;
     label_names: the scan's own class names (label value k → label_names[k]) or None to use
-    config/labels.yaml; source: where it came from (file path or 'arrays'), for messages.
+    config/labels.yaml; source: where it came from (file path or 'arrays'), for messages;
+    warnings: what reading it did that the caller should know (a PLY file named .obj read as
+    PLY, per-face labels converted to per-vertex ones); preprocessing starts ScanData.warnings
+    with them.
     """
     vertices: np.ndarray
     faces: np.ndarray
     labels: np.ndarray | None = None
     label_names: tuple[str, ...] | None = None
     source: str = "arrays"
+    warnings: tuple[str, ...] = ()
 
 
 def _as_rows(name: str, a, dtype_kind: str) -> np.ndarray:
@@ -54,6 +63,31 @@ def _as_rows(name: str, a, dtype_kind: str) -> np.ndarray:
     if arr.ndim != 2 or arr.shape[1] != 3:
         raise err(f"{name}: expected shape (N, 3) or flat (3N,), got {arr.shape}")
     return arr
+
+
+def label_values(a: np.ndarray, name: str, element: str, source: str) -> np.ndarray:
+    """Class values (1-D, any integer dtype, or floats holding integers) as int64, checked before
+    the cast, which would wrap a value int64 cannot hold (1e30 → -9223372036854775808, a uint64
+    2**64 − 1 → -1): a value that is no integer or outside LABEL_RANGE is reported as given,
+    with the element (vertex / face) it belongs to. Raises LabelError."""
+    lo, hi = LABEL_RANGE
+    if np.issubdtype(a.dtype, np.integer):
+        notint = np.zeros(a.shape, bool)
+    elif np.issubdtype(a.dtype, np.floating):
+        with np.errstate(invalid="ignore"):
+            notint = ~np.isfinite(a) | (np.mod(a, 1) != 0)
+    else:
+        raise LabelError(f"{source}: {name} must be integers (class values), got dtype {a.dtype}")
+    if notint.any():
+        i = int(np.flatnonzero(notint)[0])
+        raise LabelError(f"{source}: {name} must be integers (class values), got dtype {a.dtype} with "
+                         f"{int(notint.sum())} value(s) that are not (first: {element} {i} = {a[i].item()!r})")
+    out = (a < lo) | (a > hi)   # numpy compares mixed signed/unsigned and float/int exactly enough here
+    if out.any():
+        i = int(np.flatnonzero(out)[0])
+        raise LabelError(f"{source}: {name}: {int(out.sum())} value(s) outside the range of a class value "
+                         f"[{lo}, {hi}] (first: {element} {i} = {a[i].item()!r})")
+    return np.ascontiguousarray(a, dtype=np.int64)
 
 
 def scan_from_arrays(vertices, faces, labels=None, label_names=None, source: str = "arrays") -> RawScan:
@@ -97,11 +131,7 @@ def scan_from_arrays(vertices, faces, labels=None, label_names=None, source: str
                 raise LabelError(f"{source}: labels: {La.size} labels for {V.shape[0]} vertices: "
                                  f"expected one per vertex, shape ({V.shape[0]},), got {La.shape} "
                                  f"(or none for a garment-only scan)")
-            if not np.issubdtype(La.dtype, np.integer):
-                if not np.issubdtype(La.dtype, np.floating) or not np.all(np.isfinite(La)) \
-                        or np.any(np.mod(La, 1) != 0):
-                    raise LabelError(f"{source}: labels must be integers, got dtype {La.dtype}")
-            L = np.ascontiguousarray(La, dtype=np.int64)
+            L = label_values(La, "labels", "vertex", source)
     if isinstance(label_names, (str, bytes)):   # would be read as one name per character
         raise LabelError(f"{source}: label_names must be a list of class names (label value k → "
                          f"label_names[k]), got the string {label_names!r}")
@@ -114,22 +144,31 @@ def scan_from_arrays(vertices, faces, labels=None, label_names=None, source: str
     return RawScan(V, F, L, names, source)
 
 
-def _ply_labels(mesh, source: str) -> np.ndarray | None:
-    """The per-vertex labels of a PLY read by trimesh: its LABEL_PROPERTIES property, or None
-    (garment-only). LabelError when it has none but a property named as a segmentation is."""
-    raw = (mesh.metadata or {}).get("_ply_raw", {}).get("vertex", {}).get("data")
+def _ply_element(mesh, element: str):
+    """(the raw data of a PLY element as trimesh read it, {lower-case property name: name}), or
+    (None, {})."""
+    raw = (mesh.metadata or {}).get("_ply_raw", {}).get(element, {}).get("data")
     if raw is None:
-        return None
+        return None, {}
     if getattr(raw, "dtype", None) is not None and raw.dtype.names:
         names = list(raw.dtype.names)
     else:
         names = list(getattr(raw, "keys", lambda: ())())
-    by_lower = {str(n).lower(): n for n in names}
+    return raw, {str(n).lower(): n for n in names}
+
+
+def _ply_labels(mesh, source: str, face_labels: bool = False) -> np.ndarray | None:
+    """The per-vertex labels of a PLY read by trimesh: its LABEL_PROPERTIES property, or None
+    (garment-only, or per-face labels when face_labels). LabelError when it has none, nor
+    per-face labels, but a property named as a segmentation."""
+    raw, by_lower = _ply_element(mesh, "vertex")
+    if raw is None:
+        return None
     for prop in LABEL_PROPERTIES:
         if prop in by_lower:
             return np.asarray(raw[by_lower[prop]]).reshape(-1)
-    seg = [n for n in names if str(n).lower() in SEGMENTATION_PROPERTIES]
-    if seg:
+    seg = [n for low, n in by_lower.items() if low in SEGMENTATION_PROPERTIES]
+    if seg and not face_labels:
         raise LabelError(f"{source}: no per-vertex 'label' property, but one named {seg[0]!r}: if it holds the "
                          f"segmentation, rename it 'label' (its values as config/labels.yaml names the classes); "
                          f"if the scan is garment-only, remove it — read as garment-only, every vertex (a body "
@@ -178,30 +217,153 @@ def read_obj(path: pathlib.Path) -> tuple[np.ndarray, np.ndarray]:
     return (np.asarray(verts, np.float64).reshape(-1, 3), np.asarray(faces, np.int64).reshape(-1, 3))
 
 
-def read_scan_file(path: str | pathlib.Path) -> RawScan:
+def _file_kind(path: pathlib.Path) -> str:
+    """What the file's first bytes say it is: 'ply' (the `ply` magic line), 'binary' (NUL bytes
+    early on: no text format such as OBJ), or 'text'."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(4096)
+    except OSError as exc:
+        raise ScanFormatError(f"{path}: cannot be read ({exc.strerror or exc})") from None
+    if head.startswith((b"ply\n", b"ply\r\n")):
+        return "ply"
+    return "binary" if b"\0" in head else "text"
+
+
+def read_scan_file(path: str | pathlib.Path, label_map=None) -> RawScan:
     """A RawScan from a mesh file. PLY: the per-vertex `label` property (if present) becomes the
-    labels; OBJ (own reader: vertices exactly as stored, seams split in the file are merged
-    later, in preprocessing) and other formats trimesh reads: garment-only (labels None)."""
+    labels; without one, a per-face `label` property is converted to per-vertex labels
+    (labels.face_to_vertex_labels; which classes are garments: label_map, default
+    config/labels.yaml); with both, the vertex labels are used (refused when the two disagree on
+    more than FACE_LABEL_DISAGREEMENT of the faces). OBJ (own reader: vertices exactly as stored,
+    seams split in the file are merged later, in preprocessing) and other formats trimesh reads:
+    garment-only (labels None). The format is the file's own: a file starting with the PLY magic
+    line is read as PLY whatever its name (with a warning when the name says otherwise); a file
+    named .ply without it, or a binary file named .obj, is refused naming the mismatch."""
     import trimesh
     p = pathlib.Path(path)
     if not p.exists():
         raise FileNotFoundError(f"{p}: no such file")
     if p.is_dir():
         raise ScanFormatError(f"{p}: is a directory, not a mesh file")
-    if p.suffix.lower() == ".obj":
+    kind, suffix = _file_kind(p), p.suffix.lower()
+    notes = []
+    if kind == "ply" and suffix != ".ply":
+        notes.append(f"{p}: read as PLY: the file starts with the PLY header although its name ends "
+                     f"'{p.suffix or '(no suffix)'}'")
+    elif suffix == ".ply" and kind != "ply":
+        raise ScanFormatError(f"{p}: cannot be read as PLY: it does not start with the PLY header line 'ply' "
+                              f"(named .ply, but {'binary' if kind == 'binary' else 'text'} of another "
+                              f"format? save it with its own suffix)")
+    if suffix == ".obj" and kind != "ply":
+        if kind == "binary":
+            raise ScanFormatError(f"{p}: cannot be read as OBJ: named .obj, but binary (an OBJ is text); "
+                                  f"save it with its own format's suffix")
         V, F = read_obj(p)
+        if not len(V) and p.stat().st_size > 0:
+            raise ScanFormatError(f"{p}: cannot be read as OBJ: named .obj, but no line of it is an OBJ vertex "
+                                  f"('v x y z'); save it with its own format's suffix")
         return scan_from_arrays(V, F, None, None, source=str(p))
     try:
-        m = trimesh.load(str(p), force="mesh", process=False)
+        m = trimesh.load(str(p), file_type="ply" if kind == "ply" else None, force="mesh", process=False)
     except Exception as exc:  # trimesh raises many types for unreadable files
         raise ScanFormatError(f"{p}: cannot be read as a triangle mesh ({type(exc).__name__}: {exc})") from None
     V = np.asarray(getattr(m, "vertices", np.zeros((0, 3))))
     F = np.asarray(getattr(m, "faces", np.zeros((0, 3), np.int64)))
-    labels = None
-    if p.suffix.lower() == ".ply":
-        _check_ply_counts(p, len(V), len(F))
-        labels = _ply_labels(m, str(p))
-    return scan_from_arrays(V, F, labels, None, source=str(p))
+    if kind != "ply":
+        return scan_from_arrays(V, F, None, None, source=str(p))
+    _check_ply_counts(p, len(V), len(F))
+    face_has_labels = any(q in _ply_element(m, "face")[1] for q in LABEL_PROPERTIES)
+    labels = _ply_labels(m, str(p), face_labels=face_has_labels)
+    face_labels, F = _ply_face_labels(m, str(p), F, has_vertex_labels=labels is not None)
+    raw = scan_from_arrays(V, F, labels, None, source=str(p))
+    if face_labels is not None:
+        raw, note = _with_face_labels(raw, face_labels, label_map)
+        notes.append(note)
+    return dataclasses.replace(raw, warnings=tuple(notes)) if notes else raw
+
+
+#: With both per-vertex and per-face labels in a PLY, the vertex labels are used; the file is
+#: refused when the face labels contradict them on more than this fraction of the faces whose
+#: three vertex labels agree (two different segmentations: which one is meant cannot be told).
+FACE_LABEL_DISAGREEMENT = 0.01
+
+
+def _ply_face_labels(mesh, source: str, F: np.ndarray, has_vertex_labels: bool):
+    """(per-face labels (F,) as stored or None, the faces they go with). trimesh triangulates
+    polygons in its own order; then the faces are fanned here from the face element, in file
+    order, one label per triangle of its polygon. A segmentation under another face property name
+    (and no label anywhere) is refused as for vertices."""
+    raw, by_lower = _ply_element(mesh, "face")
+    if raw is None:
+        return None, F
+    prop = next((by_lower[q] for q in LABEL_PROPERTIES if q in by_lower), None)
+    if prop is None:
+        seg = [n for low, n in by_lower.items() if low in SEGMENTATION_PROPERTIES]
+        if seg and not has_vertex_labels:
+            raise LabelError(f"{source}: no 'label' property, but a per-face one named {seg[0]!r}: if it holds "
+                             f"the segmentation, rename it 'label' (per-face labels are read); if the scan is "
+                             f"garment-only, remove it — read as garment-only, every face (a body too) would be "
+                             f"taken for the garment")
+        return None, F
+    try:
+        FL = np.asarray(raw[prop])
+        if FL.dtype == object:
+            raise ValueError("a list per face")
+        FL = FL.reshape(len(FL), -1)
+        if FL.shape[1] != 1:
+            raise ValueError(f"{FL.shape[1]} values per face")
+        FL = FL[:, 0]
+    except (ValueError, TypeError) as exc:
+        raise LabelError(f"{source}: the per-face property {prop!r} is not one value per face ({exc})") from None
+    if len(FL) == len(F):
+        return FL, F
+    # polygons: fan them in file order, each triangle with its polygon's label
+    idx = raw[by_lower.get("vertex_indices", by_lower.get("vertex_index"))] \
+        if ("vertex_indices" in by_lower or "vertex_index" in by_lower) else None
+    if idx is None or len(idx) != len(FL):
+        raise LabelError(f"{source}: {len(FL)} per-face labels for {len(F)} triangles, and the face element's "
+                         f"polygons cannot be matched to them")
+    tris, tl = [], []
+    for k, poly in enumerate(idx):
+        poly = np.asarray(poly, np.int64).reshape(-1)
+        if len(poly) < 3:
+            raise FaceIndexError(f"{source}: face {k} has {len(poly)} vertices (a face needs 3 or more)")
+        j = np.arange(1, len(poly) - 1)
+        tris.append(np.stack([np.full(len(j), poly[0]), poly[j], poly[j + 1]], 1))
+        tl.append(np.full(len(j), k))
+    return FL[np.concatenate(tl)], np.concatenate(tris)
+
+
+def _with_face_labels(raw: RawScan, face_labels: np.ndarray, label_map) -> tuple[RawScan, str]:
+    """The scan with per-vertex labels from its per-face ones (none given), or its own vertex
+    labels checked against them; and the note for its warnings."""
+    from .labels import LabelMap, face_to_vertex_labels
+    src = raw.source
+    FL = label_values(np.asarray(face_labels).reshape(-1), "per-face labels", "face", src)
+    if raw.labels is not None:
+        lf = raw.labels[raw.faces]
+        agree = (lf[:, 0] == lf[:, 1]) & (lf[:, 1] == lf[:, 2])
+        contra = agree & (lf[:, 0] != FL)
+        n, m = int(contra.sum()), int(agree.sum())
+        if n > FACE_LABEL_DISAGREEMENT * max(m, 1):
+            i = int(np.flatnonzero(contra)[0])
+            raise LabelError(f"{src}: per-vertex and per-face labels disagree on {n} of the {m} faces whose three "
+                             f"vertex labels agree ({100 * n / m:.1f}%, more than {100 * FACE_LABEL_DISAGREEMENT:g}%; "
+                             f"first: face {i}, vertex label {int(lf[i, 0])}, face label {int(FL[i])}): two different "
+                             f"segmentations — remove the one that is not meant")
+        return raw, (f"{src}: has per-vertex and per-face labels: the per-vertex ones are used (the per-face ones "
+                     f"disagree on {n} of the {m} faces whose three vertex labels agree)")
+    lmap = label_map if label_map is not None else LabelMap.load()
+    conv = face_to_vertex_labels(raw.faces, FL, len(raw.vertices),
+                                 lambda v: lmap.garment_class(lmap.name_of(v)) is not None)
+    note = (f"{src}: per-face labels converted to per-vertex ones (a vertex takes its faces' label; a garment "
+            f"label where garment and other faces meet, docs/scan.md)")
+    if conv.faces_off:
+        note += (f": {conv.faces_off} of {len(FL)} faces cannot keep their face label's garment region with "
+                 f"per-vertex labels ({conv.missing} of the {conv.garment_faces} garment faces left out, "
+                 f"{conv.extra} other faces taken in)")
+    return dataclasses.replace(raw, labels=conv.labels), note
 
 
 def _ply_header(path: pathlib.Path) -> tuple[str, dict[str, int], int] | None:

@@ -242,7 +242,7 @@ def preprocess_checked(checked: CheckedScan) -> ScanData:
     mesh, garment region, openings and interior samples (the costly part)."""
     raw, tf, opt, lmap = checked.raw, checked.transform, checked.options, checked.label_map
     label, garment_type = checked.label, checked.requested_garment_type
-    warnings: list[str] = []
+    warnings: list[str] = list(raw.warnings)   # what reading the file did (loading.RawScan)
 
     # 1.-3. duplicate vertices, degenerate and duplicate triangles, floating fragments (the
     # scan is in the core frame already: check_scan converted it)
@@ -306,7 +306,8 @@ def preprocess_checked(checked: CheckedScan) -> ScanData:
 
 def load_scan(scan, units: str = "m", up: str = "y", label=None, garment_type: str | None = None,
               options: ScanOptions | None = None, label_map: LabelMap | None = None) -> ScanData:
-    """One call from input to ScanData. scan: a file path (PLY with per-vertex `label`, OBJ, ...),
+    """One call from input to ScanData. scan: a file path (PLY with per-vertex or per-face
+    `label`, OBJ, ...),
     a RawScan, a (vertices, faces[, labels]) tuple, the dict of
     diffavatar_ros.convert.msg_to_arrays (its units/up_axis/garment_type/template_name fill in
     the arguments left at their defaults), or a CheckedScan (what the ROS node hands its
