@@ -25,30 +25,93 @@ from .spec import _UnionFind
 def _read_obj(path):
     V, T, corners = [], [], []
     with open(path, "r", errors="replace") as fh:
-        for line in fh:
-            if line.startswith("v "):
-                V.append(line.split()[1:4])
-            elif line.startswith("vt "):
-                T.append(line.split()[1:3])
-            elif line.startswith("f "):
-                toks = line.split()[1:]
-                c = []
-                for t in toks:
-                    parts = t.split("/")
-                    if len(parts) < 2 or not parts[1]:
-                        raise ValueError(f"{path}: face without UV indices ({line.strip()})")
-                    c.append((int(parts[0]), int(parts[1])))
-                for k in range(1, len(c) - 1):     # fan-triangulate polygons
-                    corners.append((c[0], c[k], c[k + 1]))
+        for ln, line in enumerate(fh, 1):
+            try:
+                if line.startswith("v "):
+                    V.append([float(x) for x in line.split()[1:4]])
+                    if len(V[-1]) != 3:
+                        raise ValueError("a vertex needs 3 coordinates")
+                elif line.startswith("vt "):
+                    T.append([float(x) for x in line.split()[1:3]])
+                    if len(T[-1]) != 2:
+                        raise ValueError("a UV needs 2 coordinates")
+                elif line.startswith("f "):
+                    toks = line.split()[1:]
+                    c = []
+                    for t in toks:
+                        parts = t.split("/")
+                        if len(parts) < 2 or not parts[1]:
+                            raise ValueError(f"{path}: face without UV indices ({line.strip()})")
+                        c.append((int(parts[0]), int(parts[1])))
+                    if len(c) < 3:
+                        raise ValueError("a face needs 3 or more vertices")
+                    for k in range(1, len(c) - 1):     # fan-triangulate polygons
+                        corners.append((c[0], c[k], c[k + 1]))
+            except ValueError as exc:
+                if str(exc).startswith(f"{path}:"):
+                    raise
+                raise ValueError(f"{path}:{ln}: {exc}: {line.strip()!r}") from None
     if not corners:
         raise ValueError(f"{path}: holds no faces")
-    V = np.asarray(V, float)
-    T = np.asarray(T, float)
+    V = np.asarray(V, float).reshape(-1, 3)
+    T = np.asarray(T, float).reshape(-1, 2)
+    for what, A in (("vertex", V), ("UV", T)):
+        bad = ~np.isfinite(A).all(axis=1)
+        if bad.any():
+            raise ValueError(f"{path}: {int(bad.sum())} {what} line(s) hold NaN or Inf (first: {what} "
+                             f"{int(np.flatnonzero(bad)[0]) + 1})")
     C = np.asarray(corners, np.int64)   # (F, 3, 2) 1-based (or negative) indices
-    for j, n in ((0, len(V)), (1, len(T))):
+    for j, n, what in ((0, len(V), "vertex"), (1, len(T), "UV")):
         idx = C[..., j]
+        out = (idx == 0) | (idx < -n) | (idx > n)
+        if out.any():
+            raise ValueError(f"{path}: {int(out.any(axis=1).sum())} face(s) refer to a {what} index that "
+                             f"names no '{'v' if j == 0 else 'vt'}' line (first: {int(idx[out][0])}; "
+                             f"{n} {what}(s) in the file)")
         C[..., j] = np.where(idx < 0, n + idx, idx - 1)
     return V, T, C
+
+
+#: A triangle is collapsed in UV when its UV area is at most this × its longest UV edge² (or its
+#: UV edges are all zero): an equilateral triangle has 0.43, a sliver of 1:1000 about 5e-4.
+COLLAPSED_UV_RATIO = 1e-8
+#: More collapsed UV triangles than this fraction of all, or every one of a panel, is a degenerate
+#: UV pattern (refused). The paper's published dress has 11 of 39 055 (collinear border points).
+MAX_COLLAPSED_UV_FRACTION = 0.01
+
+
+def _check_uv_pattern(path, F, UV, P3, fl) -> None:
+    """ValueError naming the file when the UVs cannot be a sewing pattern: a panel whose UVs all
+    sit at one point or on one line, whose 3D triangles have no extent, or collapsed UV
+    triangles beyond MAX_COLLAPSED_UV_FRACTION (their rest shape would have zero area: the
+    simulation's rest matrices, and the panel's UV→3D scale, would be NaN or Inf)."""
+    a, b, c = UV[F[:, 0]], UV[F[:, 1]], UV[F[:, 2]]
+    area = 0.5 * np.abs((b - a)[:, 0] * (c - a)[:, 1] - (b - a)[:, 1] * (c - a)[:, 0])
+    longest = np.max([np.linalg.norm(b - a, axis=1), np.linalg.norm(c - b, axis=1),
+                      np.linalg.norm(a - c, axis=1)], axis=0)
+    collapsed = area <= COLLAPSED_UV_RATIO * longest ** 2
+    hint = ("the UVs must lay out the sewing pattern: each panel flat in UV, its triangles of "
+            "nonzero area (a file with its UVs zeroed or projected onto a line has none)")
+    for comp in np.unique(fl):
+        m = fl == comp
+        if collapsed[m].all():
+            uv = UV[np.unique(F[m])]
+            shape = "one point" if np.ptp(uv, axis=0).max() == 0 else "a line"
+            raise ValueError(f"{path}: degenerate UV pattern: the {int(m.sum())} triangles of a UV island "
+                             f"(faces from {int(np.flatnonzero(m)[0]) + 1} on) are all collapsed: their UVs lie "
+                             f"on {shape} — {hint}")
+    n = int(collapsed.sum())
+    if n > MAX_COLLAPSED_UV_FRACTION * len(F):
+        raise ValueError(f"{path}: degenerate UV pattern: {n} of {len(F)} triangles have (near) zero area in UV "
+                         f"(collapsed UVs; more than {100 * MAX_COLLAPSED_UV_FRACTION:g}% allowed; first: face "
+                         f"{int(np.flatnonzero(collapsed)[0]) + 1}) — {hint}")
+    e3 = np.linalg.norm(np.cross(P3[F[:, 1]] - P3[F[:, 0]], P3[F[:, 2]] - P3[F[:, 0]]), axis=1)
+    for comp in np.unique(fl):
+        m = fl == comp
+        if not (e3[m] > 0).any():
+            raise ValueError(f"{path}: degenerate 3D layout: the {int(m.sum())} triangles of a UV island "
+                             f"(faces from {int(np.flatnonzero(m)[0]) + 1} on) have zero area in 3D (the 'v' "
+                             f"positions give each panel's scale)")
 
 
 def _boundary_loops(F: np.ndarray) -> list:
@@ -112,6 +175,7 @@ def load_obj_pattern(path, units_in_meter: float | None = None, min_area_fractio
     A = coo_matrix((np.ones(len(E)), (E[:, 0], E[:, 1])), shape=(n, n))
     ncomp, label = connected_components(A, directed=False)
     fl = label[F[:, 0]]
+    _check_uv_pattern(path, F, UV, P3, fl)
     area3 = 0.5 * np.linalg.norm(np.cross(P3[F[:, 1]] - P3[F[:, 0]], P3[F[:, 2]] - P3[F[:, 0]]), axis=1)
     comp_area = np.bincount(fl, weights=area3, minlength=ncomp)
     keep = np.flatnonzero(comp_area >= min_area_fraction * comp_area.sum())
