@@ -51,6 +51,8 @@ CANCEL_POLL_S = 0.05        # s: how often a threading.Event given as `cancel` i
 SELF_ANCHOR_TOL = 1e-4      # m: the output drape re-anchored at itself until it moves less (Cloth.self_anchor)
 MIN_BODY_FRACTION = 0.2    # of the scan's vertices, for a body fit to the body-labelled points
 SUPPORT_GAP = 0.01          # m: a drape with no vertex this near the body does not rest on it (2.5 × the 4 mm contact thickness)
+POOR_FIT_CM = 3.0           # cm: a final Chamfer above it is said to misfit (a recovery that fits: 0.1–1 cm; a t-shirt
+# recovered from a skirt's scan: 6–9 cm)
 
 
 class RecoveryError(ValueError):
@@ -533,6 +535,13 @@ def _recover(scan, opts: RecoverOptions, ctl: "_Control", body_model, t0: float)
         warnings.append(f"the recovered garment is farther from the scan (Chamfer {optimized:.3f} cm) than the "
                         f"template's initial drape ({chamfer_initial:.3f} cm): the objective preferred a worse fit "
                         f"(with boundary_scale > 0 a garment hung elsewhere costs little)")
+    if metrics["chamfer_final_cm"] > POOR_FIT_CM:   # a result that does not describe the scan: say so, and why it may be
+        missing = next((w for w in data.warnings if w.startswith("openings not found")), "")
+        warnings.append(f"the recovered garment is {metrics['chamfer_final_cm']:.1f} cm from the scan on average "
+                        f"(Chamfer; above {POOR_FIT_CM:g} cm, where fitting recoveries stay within about 1 cm): it does "
+                        f"not describe this scan — is the garment type '{data.garment_type or data.garment_class}' "
+                        f"(template '{template_name}') right? Openings matched: {', '.join(sorted(data.boundaries))}"
+                        + (f"; {missing}" if missing else ""))
     body_out, scan_vertices = co.body_params, data.vertices
     metrics["facing_yaw_rad"] = yaw   # the fitted body's facing, from +Z (about +Y)
     if turn is not None:   # back to the scan's own facing: the assets overlay the scan as given
