@@ -66,13 +66,16 @@ UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001}
 
 def scan_to_core(points, units: str = "m", up: str = "y") -> tuple[np.ndarray, np.ndarray]:
     """Scan points → core frame (m, Y up). Returns (points (N,3) m, 3×3 matrix A with
-    core = A @ scan); Z-up scans are turned by −90° about X ((x, y, z) → (x, z, −y))."""
+    core = A @ scan): scan.frame.ScanTransform's scale and rotation (Z-up scans turned by −90°
+    about X, (x, y, z) → (x, z, −y); up -y / -z turned 180° about X more)."""
+    from ..scan.frame import UP_AXES, ScanTransform
     if units not in UNITS:
         raise ValueError(f"units: expected one of {sorted(UNITS)}, got {units!r}")
-    if up not in ("y", "z"):
-        raise ValueError(f"up: expected 'y' or 'z', got {up!r}")
+    if up not in UP_AXES:
+        raise ValueError(f"up: expected one of {', '.join(UP_AXES)}, got {up!r}")
     P = _validate.points("scan", points)
-    A = UNITS[units] * (np.eye(3) if up == "y" else np.array([[1.0, 0, 0], [0, 0, 1], [0, -1, 0]]))
+    t = ScanTransform.from_options(units, up)
+    A = t.scale * t.rotation
     return P @ A.T, A
 
 

@@ -6,6 +6,7 @@ import pathlib
 import sys
 
 import numpy as np
+from ..scan.frame import UP_AXES
 
 
 def load_scan(path):
@@ -68,7 +69,7 @@ def register(sub) -> None:
     p.add_argument("scan", help="scan mesh or point cloud (OBJ, PLY, STL, ...)")
     p.add_argument("--out", required=True, help="output directory for body.obj and body.json")
     p.add_argument("--units", choices=["m", "cm", "mm"], default="m", help="units of the scan")
-    p.add_argument("--up", choices=["y", "z"], default="y", help="vertical axis of the scan")
+    p.add_argument("--up", choices=UP_AXES, default="y", help="vertical axis of the scan (a Y-down file: --up=-y)")
     p.add_argument("--garment-type", default=None,
                    help="garment-only scan of this type (config/labels.yaml: tshirt, skirt, shorts, ...): "
                         "tops are placed at the shoulders, skirts and trousers at the waist")

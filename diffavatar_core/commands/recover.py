@@ -4,6 +4,7 @@ import json
 import pathlib
 import sys
 import time
+from ..scan.frame import UP_AXES
 
 
 def register(sub) -> None:
@@ -15,7 +16,8 @@ def register(sub) -> None:
     p.add_argument("--template", default=None, help="template file instead of the built-in one "
                    "(OBJ with UV pattern, or GarmentCode *_specification.json)")
     p.add_argument("--units", default=None, choices=("m", "cm", "mm"), help="units of the scan (default m)")
-    p.add_argument("--up", default=None, choices=("y", "z"), help="vertical axis of the scan (default y)")
+    p.add_argument("--up", default=None, choices=UP_AXES,
+                   help="vertical axis of the scan (default y; a Y-down file: --up=-y)")
     p.add_argument("--iterations", type=int, default=None, help="co-optimization iterations (config: 30)")
     p.add_argument("--output-edge", type=float, default=None, metavar="M",
                    help="edge length (m) of the output mesh when finer than the optimized one: the result is "

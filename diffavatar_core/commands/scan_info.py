@@ -2,6 +2,7 @@
 loads and preprocesses a segmented scan and prints its ScanData JSON summary (core frame, m)."""
 from ..config import load_config
 from ..scan import ScanOptions, load_scan
+from ..scan.frame import UP_AXES
 
 
 def run(args) -> int:
@@ -16,7 +17,7 @@ def register(sub) -> None:
     p = sub.add_parser("scan-info", help="preprocess a segmented scan and print its summary (JSON)")
     p.add_argument("scan", help="PLY (per-vertex `label`), OBJ or other triangle mesh")
     p.add_argument("--units", default="m", choices=["m", "cm", "mm"], help="length unit of the file")
-    p.add_argument("--up", default="y", choices=["y", "z"], help="up axis of the file")
+    p.add_argument("--up", default="y", choices=UP_AXES, help="up axis of the file (a Y-down file: --up=-y)")
     p.add_argument("--label", default=None,
                    help="garment label (class name of config/labels.yaml or value); "
                         "default: the only garment label present")

@@ -1,6 +1,8 @@
 """`diffavatar send SCAN [SCAN ...] --garment TYPE --out DIR`: send scans to a running
 diffavatar_node (ROS 2), show progress, write each result into DIR/<job_id>/."""
 
+from ..scan.frame import UP_AXES
+
 
 def run(args) -> int:
     from . import check_out_dir
@@ -25,7 +27,7 @@ def register(sub) -> None:
     p.add_argument("--garment", default="", help="garment type (tshirt, shirt, polo, dress, skirt); "
                                                  "default: inferred from the label names")
     p.add_argument("--units", default="m", choices=["m", "cm", "mm"], help="length unit of the scan files")
-    p.add_argument("--up", default="y", choices=["y", "z"], help="up axis of the scan files")
+    p.add_argument("--up", default="y", choices=UP_AXES, help="up axis of the scan files (Y down: --up=-y)")
     p.add_argument("--template", default="", help="template name or file (default: the garment type's)")
     p.add_argument("--iterations", type=int, default=0, help="optimization iterations (0: the node's default)")
     p.add_argument("--label-names", default="", help="comma-separated names of the label values, e.g. body,dress")

@@ -3,6 +3,8 @@ ground truth (perturbed template, bending stiffness, random body shape → drape
 mesh in cm, Y up); writes scan.ply and truth.json (pipeline/synthetic.py)."""
 import json
 
+from ..scan.frame import UP_AXES
+
 
 def register(sub) -> None:
     from ..pipeline.synthetic import PERTURBED
@@ -16,7 +18,7 @@ def register(sub) -> None:
     p.add_argument("--compliance-scale", type=float, default=1.0,
                    help="the truth's stretch compliances: the default material's × this")
     p.add_argument("--units", default="cm", choices=("m", "cm", "mm"))
-    p.add_argument("--up", default="y", choices=("y", "z"))
+    p.add_argument("--up", default="y", choices=UP_AXES)
     p.add_argument("--out", required=True)
     p.set_defaults(func=_run)
 

@@ -8,6 +8,7 @@ import os
 from dataclasses import dataclass, field, fields, replace
 
 from ..config import load_config
+from ..scan.frame import UP_AXES
 from ..sim.cloth import CONTACT_NORMALS, NEWTON_SOLVERS
 
 PARAMETRIZATIONS = ("cage", "vertices")
@@ -216,8 +217,8 @@ class RecoverOptions:
             bad("interior_to", f"must be one of {INTERIOR_TO}")
         if self.units not in ("m", "cm", "mm"):
             bad("units", "must be m, cm or mm")
-        if self.up not in ("y", "z"):
-            bad("up", "must be y or z")
+        if self.up not in UP_AXES:
+            bad("up", f"must be one of {', '.join(UP_AXES)}")
         for name, kind in GROUPS.items():
             if not isinstance(getattr(self, name), kind):
                 bad(name, f"must be a {kind.__name__} (or, to from_config / with_, a mapping of its fields)")

@@ -32,7 +32,7 @@ from ..pattern.garment import Garment
 from ..pattern.templates import FIT_MEASUREMENTS, TEMPLATES, make_template, template_measurements
 from ..scan import ScanData, load_scan
 from ..scan.errors import ScanError
-from ..scan.frame import lying_hint
+from ..scan.frame import FLIPPED_UP, lying_hint
 from ..sim.cloth import Cloth
 from ..sim.material import ClothMaterial
 from .coopt import co_optimize, seam_mismatch_pct
@@ -51,6 +51,7 @@ CANCEL_POLL_S = 0.05        # s: how often a threading.Event given as `cancel` i
 SELF_ANCHOR_TOL = 1e-4      # m: the output drape re-anchored at itself until it moves less (Cloth.self_anchor)
 MIN_BODY_FRACTION = 0.2    # of the scan's vertices, for a body fit to the body-labelled points
 SUPPORT_GAP = 0.01          # m: a drape with no vertex this near the body does not rest on it (2.5 × the 4 mm contact thickness)
+POOR_BODY_FIT = 0.01        # m: a full scan's body fit with a larger rms is tried upside down (_refuse_upside_down)
 POOR_FIT_CM = 3.0           # cm: a final Chamfer above it is said to misfit (a recovery that fits: 0.1–1 cm; a t-shirt
 # recovered from a skirt's scan: 6–9 cm)
 
@@ -206,6 +207,22 @@ def _fine_output(g, cage, co, fine: Garment, material, body_vertices, body_faces
     return fine, rest, np.array(cloth.x), s
 
 
+def _refuse_upside_down(body_points, fit, model, occluders, up: str, ctl) -> None:
+    """Raises RecoveryError (BAD_OPTION) when the body-labelled points (N, 3) m fit the body model
+    less than half as well (rms) as they do turned 180° about X — the scan is upside down: a
+    Y-down file (the camera frame of OpenCV and most photogrammetry) read as Y-up fitted the
+    bundled sample to 1.8 cm rms against 0.18 cm and its drape then fell off the body. Called only
+    for a poor fit (rms > POOR_BODY_FIT): the second fit costs another body fit."""
+    flipped = fit_body(body_points * np.array([1.0, -1.0, -1.0]), None, model, occluders=occluders * [1.0, -1.0, -1.0],
+                       cancel=ctl)
+    ctl.check("body")
+    if flipped.rms < 0.5 * fit.rms:
+        other = FLIPPED_UP[up]
+        raise RecoveryError(f"the scan looks upside down: its body fits the body model to {100 * fit.rms:.2f} cm rms "
+                            f"as read (up={up}) and to {100 * flipped.rms:.2f} cm turned over — give up={other} "
+                            f"(on the command line --up={other})", "BAD_OPTION")
+
+
 def _initial_drape(cloth, opts, cancel):
     """The template's drape on the fitted body: drape_steps XPBD steps (1/120 s, opts.drape_sweeps
     sweeps each: more on meshes finer than 4 cm, options.sweeps_for_edge), then Newton to
@@ -329,6 +346,8 @@ def _recover(scan, opts: RecoverOptions, ctl: "_Control", body_model, t0: float)
                    occluders=Vg_scan if full else None,   # the body under the garment is unseen
                    cancel=ctl)
     ctl.check("body")
+    if full and fit.rms > POOR_BODY_FIT:
+        _refuse_upside_down(pts, fit, model, Vg_scan, data.transform.up, ctl)
     body_params = fit.params
     yaw, turn, given = facing_yaw(body_params), None, data   # given: the scan as converted, before any turn
     if abs(yaw) > FACING_TURN and data.checked is not None:

@@ -6,6 +6,8 @@ a shift:
     p_core = scale · R · p_scan − origin        (p: (3,) points as rows; scale in m per scan unit)
 A Z-up scan is rotated -90° about X, (x, y, z) → (x, z, -y): its +Z becomes +Y and its -Y
 (the forward direction of Z-up tools such as Blender) becomes +Z, so +X stays the body's left.
+up = -y / -z: a file whose up is its −Y / −Z, turned 180° about X more ((x, y, z) → (x, −y, −z) /
+(x, −z, y)).
 origin (m, core axes) is 0 unless the subject stands farther than FAR_FROM_ORIGIN from the file's
 origin (a rig whose origin is a room's corner; check_scan, centring_origin: the floor below the
 subject, rounded to whole metres): the drapes' single-precision sweeps resolve 0.24 µm at 2 m but
@@ -25,7 +27,13 @@ FAR_FROM_ORIGIN = 2.0   # m: a scan whose floor below the subject (centring_orig
 UP_ROTATIONS = {
     "y": np.eye(3),
     "z": np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]]),
+    # upside-down files (Y down: the camera frame of OpenCV and most photogrammetry; Z down): the
+    # same frames turned 180° about X, so −Y / −Z becomes +Y (both proper rotations)
+    "-y": np.array([[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]]),
+    "-z": np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]]),
 }
+UP_AXES = tuple(UP_ROTATIONS)   # the `up` option's values ("-y" on a command line: --up=-y)
+FLIPPED_UP = {"y": "-y", "-y": "y", "z": "-z", "-z": "z"}   # the same axis pointing the other way
 
 
 @dataclass(frozen=True)
@@ -41,7 +49,7 @@ class ScanTransform:
 
     @classmethod
     def from_options(cls, units: str = "m", up: str = "y") -> "ScanTransform":
-        """units: m, cm or mm; up: y or z (case and surrounding spaces ignored; empty = m / y).
+        """units: m, cm or mm; up: y, z, -y or -z (case and surrounding spaces ignored; empty = m / y).
         Raises BadOptionError naming the option."""
         u = str(units).strip().lower() or "m"
         a = str(up).strip().lower() or "y"
@@ -98,7 +106,7 @@ def lying_hint(V_core: np.ndarray, transform: ScanTransform) -> str:
     ext = V_core.max(axis=0) - V_core.min(axis=0)
     if min(ext[0], ext[2]) <= 1.2 * ext[1]:
         return ""
-    other = "z" if transform.up == "y" else "y"
+    other = "z" if transform.up in ("y", "-y") else "y"
     return (f"the scan is {ext[1]:.3g} m tall but {ext[0]:.3g} m wide and {ext[2]:.3g} m deep — lying? "
             f"up={other} would make it {ext[2]:.3g} m tall")
 
@@ -117,7 +125,7 @@ def check_plausible_size(V_core: np.ndarray, transform: ScanTransform, min_heigh
     for u, s in UNITS.items():
         if u != transform.units and min_height <= raw_ext[1] * s <= max_height and raw_ext.max() * s <= max_height:
             hints.append(f"units={u} would make it {raw_ext[1] * s:.3g} m tall")
-    other_up = "z" if transform.up == "y" else "y"
+    other_up = "z" if transform.up in ("y", "-y") else "y"
     alt = raw_ext[2] * transform.scale  # the scan's other candidate up axis
     if not hints and min_height <= alt <= max_height:
         hints.append(f"up={other_up} would make it {alt:.3g} m tall")
