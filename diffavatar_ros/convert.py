@@ -147,6 +147,7 @@ def result_to_assets(job_id: str, result) -> "AvatarAssets":
     msg.iterations = int(result.iterations)
     msg.wall_s = float(result.wall_s)
     msg.output_dir = str(result.output_dir or "")
+    msg.warnings = [str(w) for w in getattr(result, "warnings", ())]
     return msg
 
 
@@ -229,4 +230,4 @@ def assets_to_result(msg, loss_history=()):
         garment_vertices=a["garment_vertices"].astype(np.float64), garment_faces=a["garment_faces"].astype(np.int64),
         garment_uv=uv, body_vertices=a["body_vertices"].astype(np.float64),
         body_faces=a["body_faces"].astype(np.int64), metrics=metrics, iterations=int(msg.iterations),
-        wall_s=float(msg.wall_s), loss_history=list(loss_history))
+        wall_s=float(msg.wall_s), loss_history=list(loss_history), warnings=list(msg.warnings))

@@ -52,6 +52,7 @@ def test_ros_assets_round_trip():
     pytest.importorskip("rclpy")
     from diffavatar_ros.convert import assets_to_arrays, assets_to_result, result_to_assets
     r = example_result(1)
+    r.warnings = ["openings not found for a 'skirt' garment: waist", "the subject faces 90° from +Z"]
     msg = result_to_assets("job-7", r)
     a = assets_to_arrays(msg)
     np.testing.assert_array_equal(a["rest_xy"], r.pattern.rest_xy)  # float64: exact
@@ -61,6 +62,7 @@ def test_ros_assets_round_trip():
     assert msg.job_id == "job-7" and msg.error_code == 0 and msg.chamfer_final_cm == 1.2
     assert list(msg.pattern.panel_names) == ["front", "back"]
     assert msg.material.contact_normals == "valley"
+    assert list(assets_to_result(msg).warnings) == r.warnings   # what the recovery warned of reaches a ROS client
     back = assets_to_result(msg).material
     assert (back.contact_normals, back.thickness, back.compliance_weft) == ("valley", 0.004, 2e-3)
     assert (msg.material.bending_stiffness_low, msg.material.bending_stiffness_high) == (0.0, 6.3e-6)
