@@ -10,7 +10,9 @@ def load_mesh(path: str | pathlib.Path) -> tuple[np.ndarray, np.ndarray]:
     """(V: (N, 3) float64, F: (M, 3) int64) of a triangle mesh file, vertices as stored (no
     merging, no reordering); raises ValueError naming the file if it cannot be read or holds no
     triangles. A file starting with the PLY magic line is read as PLY whatever its name (a PLY
-    saved as .obj read as OBJ held no triangles)."""
+    saved as .obj read as OBJ held no triangles), as the scan reader reads it
+    (scan.loading.read_ply: faces and triangle strips; a face of fewer than 3 vertices is
+    refused, not dropped)."""
     import trimesh
     path = pathlib.Path(path)
     if not path.exists():
@@ -19,8 +21,15 @@ def load_mesh(path: str | pathlib.Path) -> tuple[np.ndarray, np.ndarray]:
         raise ValueError(f"{path}: is a directory, not a mesh file")
     with open(path, "rb") as fh:
         is_ply = fh.read(5).startswith((b"ply\n", b"ply\r\n"))
+    if is_ply:
+        from .scan.loading import read_ply
+        ply = read_ply(path)   # ScanError (a ValueError) naming the file and the problem
+        F = ply.faces
+        if len(F) == 0:
+            raise ValueError(f"{path}: holds no triangle mesh")
+        return ply.vertices, F
     try:
-        m = trimesh.load(str(path), file_type="ply" if is_ply else None, force="mesh", process=False)
+        m = trimesh.load(str(path), force="mesh", process=False)
     except Exception as exc:  # trimesh raises many types for unreadable files
         raise ValueError(f"{path}: cannot be read as a triangle mesh ({type(exc).__name__}: {exc})") from None
     if not hasattr(m, "faces") or len(m.faces) == 0:

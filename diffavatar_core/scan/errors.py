@@ -45,14 +45,16 @@ class NonFiniteError(ScanError):
 
 
 class FaceIndexError(ScanError):
-    """A face refers to a vertex index outside [0, #V), or faces are not integer triangles."""
+    """A face refers to a vertex index outside [0, #V), or faces are not integer triangles (a PLY
+    face of fewer than 3 vertices: an edge or point stored as a face)."""
     code = "BAD_FACE_INDEX"
 
 
 class LabelError(ScanError):
     """Per-vertex (or a PLY's per-face) labels are malformed (wrong length, not integers, out of
     a class value's range, a value naming no class of the scan's label_names, per-vertex and
-    per-face labels that disagree), or a label name is unknown or not a garment."""
+    per-face labels that disagree, values the label map does not name on a sizeable part of the
+    scan), or a label name is unknown or not a garment."""
     code = "BAD_LABELS"
 
 

@@ -242,7 +242,8 @@ def preprocess_checked(checked: CheckedScan) -> ScanData:
     mesh, garment region, openings and interior samples (the costly part)."""
     raw, tf, opt, lmap = checked.raw, checked.transform, checked.options, checked.label_map
     label, garment_type = checked.label, checked.requested_garment_type
-    warnings: list[str] = list(raw.warnings)   # what reading the file did (loading.RawScan)
+    # what reading the file did (loading.RawScan), then what the checks found (unnamed labels)
+    warnings: list[str] = list(raw.warnings) + list(checked.warnings)
 
     # 1.-3. duplicate vertices, degenerate and duplicate triangles, floating fragments (the
     # scan is in the core frame already: check_scan converted it)
