@@ -729,7 +729,7 @@ def _garbage_string(rng):
         return "".join(chr(c) for c in rng.integers(0x20, 0x2FF, size=rng.integers(1, 40)))
     if kind == 2:
         return "x" * int(rng.integers(1000, 20000))
-    return str(rng.choice(["mm", "yz", "-y", "none", "../../etc/passwd", "dress\x00"]))
+    return str(rng.choice(["mm", "yz", "-x", "none", "../../etc/passwd", "dress\x00"]))
 
 
 def _fuzz_scan(rng, i):
