@@ -4,6 +4,7 @@ Lengths in m, bending stiffness in N·m, angles in rad."""
 from __future__ import annotations
 
 import math
+import numbers
 import os
 from dataclasses import dataclass, field, fields, replace
 
@@ -18,6 +19,20 @@ STRETCH = ("fixed", "garment")
 INTERIOR_TO = ("surface", "points")
 BENDING_COMPARE = ("guided", "unguided", "asymmetric", "fresh")   # CoOptObjective.try_bending
 REFERENCE_EDGE = 0.04   # m: the mesh drape_iterations is set for (the default edge_length)
+# Bounds of the options, from how each value is used (each checked when the options are made, so a
+# bad value is refused by its own name before the scan is even read, not minutes later by a stage):
+INT_MAX = 2**31 - 1        # counts reach the C++ core as a C int (a larger one: pybind's TypeError)
+MAX_SAMPLES = 10**7        # samples / metrics.chamfer_samples / scan.interior_samples: each sample is
+                           #   tens of bytes in arrays made (and measured) per evaluation; 10⁸ would be GBs
+MIN_INTERIOR_SAMPLES = 10  # scan.interior_samples: the recovery refuses a garment region with fewer (NO_GARMENT)
+BEND_STIFFNESS_MAX = 1e-2  # N·m: 10x the stiffest fabric the bending candidates reach (coopt.BENDING_RANGE,
+                           #   1e-3, heavier than denim); at 1 N·m the sample skirt's drape failed, the cloth in the body
+RESIDUAL_TOL_MIN = 1e-8    # about the relative force residual a drape's Newton reaches in round-off: the sample skirt's
+                           #   stalls at 6.6e-9, and residual_tol 3e-9 (or 1e-300) failed as SIMULATION_FAILED after the
+                           #   body fit; 1e-8 converges (and is what the tests use); 1 would be the weight unbalanced
+SOBOLEV_LENGTH_MAX = 10.0  # m: 5x a garment's largest panel, past which the H¹ metric is the same (panel-wide moves
+                           #   only); at 1e6 m the metric is singular in round-off (pattern/sobolev.py)
+BOUNDARY_SCALE_MIN = 1e-4  # m: 0.1 mm, far below a scan's noise; at 1e-300 m s² underflows and L_boundary is NaN
 
 
 def sweeps_for_edge(sweeps: int, edge: float) -> int:
@@ -43,7 +58,7 @@ class Weights:
 
 
 @dataclass(frozen=True)
-class StepSizes:
+class StepSizes:   # each >= 0; with iterations > 0 every group the co-optimization moves needs > 0
     handles: float = 0.004
     log10_bending: float = 0.1
     log10_stretch: float = 0.1
@@ -96,18 +111,18 @@ class RecoverOptions:
     optimize_body: bool = True
     weights: Weights = field(default_factory=Weights)
     step_sizes: StepSizes = field(default_factory=StepSizes)
-    bend_stiffness: float = 5e-6
-    samples: int = 2000
+    bend_stiffness: float = 5e-6   # N·m, in (0, BEND_STIFFNESS_MAX]
+    samples: int = 2000   # garment samples of L_interior: in [1, MAX_SAMPLES] (0: garment_samples refused it late)
     interior_to: str = "points"
     drape_steps: int = 200
     drape_rounds: int = 3
-    drape_iterations: int = 40
-    residual_tol: float = 1e-7
+    drape_iterations: int = 40   # sweeps per XPBD step at 4 cm: >= 1 (0: the drape refused it late), scaled ≤ INT_MAX
+    residual_tol: float = 1e-7   # relative force residual: in [RESIDUAL_TOL_MIN, 1)
     max_seam_mismatch_pct: float = 5.0
     body_trim_distance: float = 0.05
     length_measure: str = "raw"
     length_smoothing: float = 0.005
-    boundary_scale: float = 0.0
+    boundary_scale: float = 0.0   # m: 0 (L2) or >= BOUNDARY_SCALE_MIN
     fresh_every: int = 5
     measurement_fit_iterations: int = 10
     measurement_fit_bending: tuple = (1.0, 0.5, 0.25)   # decades: the bending searched after the fit, which then runs again (CoOptObjective.search_bending); () none
@@ -126,15 +141,15 @@ class RecoverOptions:
     length_tolerance_pct: float = 2.0
     length_tolerance_min: float = 0.01
     patience: int = 5
-    sobolev_length: float = 0.3
+    sobolev_length: float = 0.3   # m: in [0, SOBOLEV_LENGTH_MAX] (0: Euclidean)
     reevaluations: int = 1
     reevaluate_tol: float = 0.01
     # per run
-    garment_type: str | None = None
+    garment_type: str | None = None   # a string (template name or labels.yaml synonym) or None
     template: str | None = None          # a template file (OBJ with UVs / GarmentCode JSON)
     units: str = "m"
     up: str = "y"
-    label: str | int | None = None
+    label: str | int | None = None   # the garment's label name or value
     job_id: str = ""
     config: dict = field(default_factory=dict, compare=False, repr=False)  # the full loaded config
 
@@ -147,13 +162,29 @@ class RecoverOptions:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < 0:
                 bad(name, "must be a non-negative integer")
+            if v > INT_MAX:
+                bad(name, f"must be at most {INT_MAX}")
+        for name in ("samples", "drape_iterations"):   # 0: garment_samples / the drape's sweeps refuse it late
+            if getattr(self, name) < 1:
+                bad(name, "must be a positive integer")
+        if self.samples > MAX_SAMPLES:
+            bad("samples", f"must be at most {MAX_SAMPLES}")
         for name in ("edge_length", "bend_stiffness", "residual_tol", "max_seam_mismatch_pct",
                      "body_trim_distance", "output_settle_tol", "guided_capture"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
                 bad(name, "must be a positive number")
-        if self.length_measure not in ("raw", "resampled"):
-            bad("length_measure", "must be raw or resampled")
+        if not self.bend_stiffness <= BEND_STIFFNESS_MAX:
+            bad("bend_stiffness", f"must be at most {BEND_STIFFNESS_MAX:g} N·m (cloth: 1e-7 … 1e-3)")
+        if not RESIDUAL_TOL_MIN <= self.residual_tol < 1:
+            bad("residual_tol", f"must lie in [{RESIDUAL_TOL_MIN:g}, 1) (a force residual relative to the weight; "
+                                "a drape's Newton stalls near 1e-8 in round-off)")
+
+        def choice(name, allowed, why=None):   # a string among `allowed` (a list or number is refused too)
+            v = getattr(self, name)
+            if not isinstance(v, str) or v not in allowed:
+                bad(name, why or f"must be one of {tuple(allowed)}")
+        choice("length_measure", ("raw", "resampled"), "must be raw or resampled")
         kg = self.guided_stiffness   # stored as the tuple of stiffnesses to try: a number k is (k,), 0 is ()
         seq = tuple(kg) if isinstance(kg, (list, tuple)) else (kg,)
         stored_off = isinstance(kg, tuple) and not kg   # 0 as stored: with_() re-validates it
@@ -188,6 +219,10 @@ class RecoverOptions:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
                 bad(name, "must be a number >= 0")
+        if self.sobolev_length > SOBOLEV_LENGTH_MAX:
+            bad("sobolev_length", f"must lie in [0, {SOBOLEV_LENGTH_MAX:g}] m (0: the Euclidean metric)")
+        if 0 < self.boundary_scale < BOUNDARY_SCALE_MIN:
+            bad("boundary_scale", f"must be 0 (off) or at least {BOUNDARY_SCALE_MIN:g} m")
         for name in ("optimize_body", "masses_follow_rest", "template_sizing", "measurement_fit_refit"):
             if not isinstance(getattr(self, name), bool):
                 bad(name, "must be true or false")
@@ -196,29 +231,31 @@ class RecoverOptions:
                 bad(name, "must be at least 1")
         if not 0.005 <= self.edge_length <= 0.2:
             bad("edge_length", "must lie in [0.005, 0.2] m")
+        if self.drape_sweeps > INT_MAX:   # drape_iterations × (0.04 m / edge_length)²
+            bad("drape_iterations", f"times (0.04 m / edge_length)² must be at most {INT_MAX}")
         o = self.output_edge_length
         if isinstance(o, bool) or not isinstance(o, (int, float)) or not (o == 0 or 0.005 <= o <= 0.2):
             bad("output_edge_length", "must be 0 (off) or lie in [0.005, 0.2] m")
-        if self.contact_normals not in CONTACT_NORMALS:
-            bad("contact_normals", f"must be one of {CONTACT_NORMALS}")
-        if self.newton_solver not in NEWTON_SOLVERS:
-            bad("newton_solver", f"must be one of {NEWTON_SOLVERS}")
-        if self.parametrization not in PARAMETRIZATIONS:
-            bad("parametrization", f"must be one of {PARAMETRIZATIONS}")
-        if self.optimizer not in OPTIMIZERS:
-            bad("optimizer", f"must be one of {OPTIMIZERS}")
-        if self.bending not in BENDING:
-            bad("bending", f"must be one of {BENDING}")
-        if self.stretch not in STRETCH:
-            bad("stretch", f"must be one of {STRETCH}")
-        if self.bending_compare not in BENDING_COMPARE:
-            bad("bending_compare", f"must be one of {BENDING_COMPARE}")
-        if self.interior_to not in INTERIOR_TO:
-            bad("interior_to", f"must be one of {INTERIOR_TO}")
-        if self.units not in ("m", "cm", "mm"):
-            bad("units", "must be m, cm or mm")
-        if self.up not in UP_AXES:
-            bad("up", f"must be one of {', '.join(UP_AXES)}")
+        choice("contact_normals", CONTACT_NORMALS)
+        choice("newton_solver", NEWTON_SOLVERS)
+        choice("parametrization", PARAMETRIZATIONS)
+        choice("optimizer", OPTIMIZERS)
+        choice("bending", BENDING)
+        choice("stretch", STRETCH)
+        choice("bending_compare", BENDING_COMPARE)
+        choice("interior_to", INTERIOR_TO)
+        choice("units", ("m", "cm", "mm"), "must be m, cm or mm")
+        choice("up", UP_AXES, f"must be one of {', '.join(UP_AXES)}")
+        if self.garment_type is not None and not isinstance(self.garment_type, str):
+            bad("garment_type", "must be a garment type name (a string: a template name or a synonym in "
+                                "config/labels.yaml)")
+        lb = self.label
+        if lb is not None and (isinstance(lb, bool) or not isinstance(lb, (str, numbers.Integral))):
+            bad("label", "must be a label name or an integer label value")
+        if not isinstance(self.job_id, str):
+            bad("job_id", "must be a string")
+        if not isinstance(self.config, dict):
+            bad("config", "must be a loaded configuration (a mapping)")
         for name, kind in GROUPS.items():
             if not isinstance(getattr(self, name), kind):
                 bad(name, f"must be a {kind.__name__} (or, to from_config / with_, a mapping of its fields)")
@@ -242,6 +279,42 @@ class RecoverOptions:
         if self.measurement_fit_iterations and not self.step_sizes.measurements > 0:
             raise ValueError("recover options: step_sizes.measurements must be positive when "
                              f"measurement_fit_iterations is {self.measurement_fit_iterations}")
+        if self.iterations:   # every group the co-optimization moves needs a positive unit step (lbfgs / optim)
+            s, why = self.step_sizes, {"handles": "the pattern is optimized"}
+            if self.bending != "fixed" and self.bending_after < self.iterations:
+                why["log10_bending"] = f"bending is {self.bending}"
+            if self.stretch != "fixed" and self.bending_after < self.iterations:
+                why["log10_stretch"] = f"stretch is {self.stretch}"
+            if self.optimize_body and self.body_after < self.iterations:
+                why["shape"] = why["pose"] = "optimize_body is true"
+            for name, reason in why.items():
+                if not getattr(s, name) > 0:
+                    raise ValueError(f"recover options: step_sizes.{name} must be positive when {reason} "
+                                     f"(iterations {self.iterations}), got {getattr(s, name)!r}")
+        self._check_config_groups()
+
+    def _check_config_groups(self):
+        """The loaded config's `metrics:` and `scan:` groups, which the recovery reads (recovery.py,
+        ScanOptions): refused here by their own names, not by a stage minutes in."""
+        cfg = self.config
+        if not cfg:
+            return
+        for group in ("metrics", "scan"):
+            if not isinstance(cfg.get(group, {}), dict):
+                raise ValueError(f"config: {group} must be a mapping, got {type(cfg[group]).__name__}")
+        metrics = cfg.get("metrics", {})
+        n = metrics.get("chamfer_samples", 20000)
+        if isinstance(n, bool) or not isinstance(n, numbers.Integral) or not 1 <= n <= MAX_SAMPLES:
+            raise ValueError(f"config: metrics.chamfer_samples must be a positive integer (at most {MAX_SAMPLES}), "
+                             f"got {n!r}")
+        seed = metrics.get("seed", 0)
+        if isinstance(seed, bool) or not isinstance(seed, numbers.Integral) or not 0 <= seed < 2**64:
+            raise ValueError(f"config: metrics.seed must be an integer in [0, 2**64), got {seed!r}")
+        from ..scan.preprocess import ScanOptions
+        scan = ScanOptions.from_config(cfg)   # each field refused by name ("scan options: ...")
+        if not MIN_INTERIOR_SAMPLES <= scan.interior_samples <= MAX_SAMPLES:
+            raise ValueError(f"config: scan.interior_samples must lie in [{MIN_INTERIOR_SAMPLES}, {MAX_SAMPLES}] for "
+                             f"a recovery, got {scan.interior_samples!r}")
 
     @property
     def drape_sweeps(self) -> int:
