@@ -19,13 +19,35 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+EXIT_CANCELLED = 130   # 128 + SIGINT: the shell's status of a command ended by Ctrl-C
+
+
 def main(argv=None) -> int:
+    """Runs one command; its exit status: 0, 2 for a refused input (`diffavatar: error: ...`), 130
+    when interrupted (Ctrl-C / SIGINT, or a run cancelled: `diffavatar: cancelled`, no traceback)."""
+    try:
+        return _main(argv)
+    except KeyboardInterrupt:
+        return _cancelled()
+
+
+def _cancelled() -> int:
+    try:
+        print("diffavatar: cancelled", file=sys.stderr)
+    except KeyboardInterrupt:   # a second Ctrl-C while saying so
+        pass
+    return EXIT_CANCELLED
+
+
+def _main(argv) -> int:
     args = build_parser().parse_args(argv)
-    from . import set_num_threads
+    from . import Cancelled, set_num_threads
     try:
         if args.threads is not None:
             set_num_threads(args.threads)
         return int(args.func(args) or 0)
+    except (KeyboardInterrupt, Cancelled):
+        return _cancelled()
     except (ValueError, FileNotFoundError) as exc:
         print(f"diffavatar: error: {exc}", file=sys.stderr)
         return 2

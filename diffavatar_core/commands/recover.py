@@ -1,8 +1,11 @@
 """`diffavatar recover SCAN --out DIR`: the main job — recover the sewing pattern, material and
 body from a segmented scan (paper §4.2) and write the result directory (docs/pipeline.md)."""
+import contextlib
 import json
 import pathlib
+import signal
 import sys
+import threading
 import time
 from ..scan.frame import UP_AXES
 
@@ -30,7 +33,8 @@ def register(sub) -> None:
 class ProgressBar:
     """One status line on stderr: stage, iteration, loss, elapsed and ETA of the optimization."""
 
-    def __init__(self, stream=sys.stderr):
+    def __init__(self, stream=None):
+        stream = stream if stream is not None else sys.stderr   # the current one (not the one at import)
         self.stream, self.t0, self.t_opt = stream, time.perf_counter(), None
         self.tty = stream.isatty()
 
@@ -59,6 +63,28 @@ class ProgressBar:
             self.stream.write("\n")
 
 
+@contextlib.contextmanager
+def _sigint_cancels(token):
+    """Ctrl-C (SIGINT) during the recovery cancels `token` — so the candidate drapes running in
+    other threads (candidate_workers.py) stop within an iteration too, instead of being waited
+    for — and interrupts the main thread as usual (KeyboardInterrupt: cli.main says 'cancelled',
+    exit status 130). The previous handler is back afterwards; off the main thread, or with
+    SIGINT not at Python's default (ignored, or the caller's own handler), nothing changes."""
+    if (threading.current_thread() is not threading.main_thread()
+            or signal.getsignal(signal.SIGINT) is not signal.default_int_handler):   # e.g. ignored (a background job)
+        yield
+        return
+
+    def on_sigint(signum, frame):
+        token.cancel()
+        raise KeyboardInterrupt
+    previous = signal.signal(signal.SIGINT, on_sigint)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
 def _run(args) -> int:
     from ..config import load_config
     from . import check_out_dir, write_failed
@@ -70,8 +96,11 @@ def _run(args) -> int:
                                       up=args.up, iterations=args.iterations,
                                       output_edge_length=args.output_edge)
     bar = None if args.quiet else ProgressBar()
+    from .. import CancelToken
+    cancel = CancelToken()
     try:
-        result = recover(pathlib.Path(args.scan), opts, progress=bar)
+        with _sigint_cancels(cancel):
+            result = recover(pathlib.Path(args.scan), opts, progress=bar, cancel=cancel)
     finally:
         if bar is not None:
             bar.close()
