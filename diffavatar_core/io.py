@@ -11,7 +11,7 @@ def load_mesh(path: str | pathlib.Path) -> tuple[np.ndarray, np.ndarray]:
     merging, no reordering); raises ValueError naming the file if it cannot be read or holds no
     triangles. A file starting with the PLY magic line is read as PLY whatever its name (a PLY
     saved as .obj read as OBJ held no triangles), as the scan reader reads it
-    (scan.loading.read_ply: faces and triangle strips; a face of fewer than 3 vertices is
+    (scan.ply_reader.read_ply: faces and triangle strips; a face of fewer than 3 vertices is
     refused, not dropped)."""
     import trimesh
     path = pathlib.Path(path)
@@ -22,7 +22,7 @@ def load_mesh(path: str | pathlib.Path) -> tuple[np.ndarray, np.ndarray]:
     with open(path, "rb") as fh:
         is_ply = fh.read(5).startswith((b"ply\n", b"ply\r\n"))
     if is_ply:
-        from .scan.loading import read_ply
+        from .scan.ply_reader import read_ply
         ply = read_ply(path)   # ScanError (a ValueError) naming the file and the problem
         F = ply.faces
         if len(F) == 0:

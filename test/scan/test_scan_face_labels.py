@@ -1,5 +1,5 @@
 """Per-face segmentation labels in a PLY (what many segmentation tools export): converted to the
-per-vertex labels the pipeline uses (labels.face_to_vertex_labels), so that the garment region
+per-vertex labels the pipeline uses (face_labels.face_to_vertex_labels), so that the garment region
 (the faces whose three vertices carry the garment label) is the labelled garment faces wherever
 a per-vertex labelling can say so. Before, the face property was ignored: the scan was read as
 garment-only, and with a garment type the whole body + skirt became "the skirt"."""
@@ -10,7 +10,7 @@ import pytest
 import trimesh
 
 from diffavatar_core import scan as sv
-from diffavatar_core.scan.labels import face_to_vertex_labels
+from diffavatar_core.scan.face_labels import face_to_vertex_labels
 
 SAMPLE = pathlib.Path(__file__).resolve().parents[2] / "diffavatar_core" / "data" / "sample_scan.ply"
 GARMENTS = (1, 2, 3, 4)   # config/labels.yaml: upper, dress, skirt, pants

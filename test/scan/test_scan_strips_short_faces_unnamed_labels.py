@@ -12,7 +12,7 @@ import trimesh
 
 from diffavatar_core import scan as sv
 from diffavatar_core.scan.labels import LabelMap
-from diffavatar_core.scan.loading import strips_to_triangles
+from diffavatar_core.scan.ply_reader import strips_to_triangles
 
 SAMPLE = pathlib.Path(__file__).resolve().parents[2] / "diffavatar_core" / "data" / "sample_scan.ply"
 N_PHI = 24
