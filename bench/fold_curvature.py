@@ -4,7 +4,7 @@
 on soft fabrics (BENCHMARKS.md stops 39, 50, 51); the *amount* of folding may not depend on it.
 
 For each benchmark case (bench/_case_grid.py): the truth's outline on the template's 4 cm mesh
-with the true body (bench/recover_floor.py's truth_handles: every parameter exact but the mesh),
+with the true body (bench/recover_floor.py's truth_outline_case: every parameter exact but the mesh),
 draped fresh at the true bending × 10^d, and the truth itself. Each surface's fold curvature
 S (1/m) at radius r: quadrics h(u, v) fitted by least squares to 60,000 area-sampled surface
 points within r of each of 3,000 other sampled centres (local frame by PCA), S = the mean over
@@ -23,13 +23,8 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from _case_grid import run_grid
-from recover_floor import truth_handles
-from diffavatar_core.body import BodyModel
-from diffavatar_core.pattern.cage import build_cage
-from diffavatar_core.pattern.templates import make_template
-from diffavatar_core.pipeline import RecoverOptions
-from diffavatar_core.pipeline.recovery import scan_for_recovery
-from diffavatar_core.pipeline.synthetic import make_case, scan_like
+from recover_floor import truth_outline_case
+from diffavatar_core.pipeline.synthetic import scan_like
 from diffavatar_core.sim.cloth import Cloth
 from diffavatar_core.sim.material import ClothMaterial
 
@@ -101,13 +96,7 @@ def crossings(values: dict, target: float) -> list:
 
 def case_row(template: str, seed: int, bend: float, args) -> dict:
     t0 = time.perf_counter()
-    case = make_case(template, seed=seed, bend_stiffness=bend)
-    lm = BodyModel.default().landmarks(case.body_params)
-    g = make_template(template, landmarks=lm, edge_length=0.04)
-    cage = build_cage(g)
-    rest_truth = cage.rest(truth_handles(g, cage, case.garment))
-    Vs, Fs = scan_for_recovery((case.scan_vertices, case.scan_faces, case.scan_labels),
-                               RecoverOptions.from_config(units=case.units, up=case.up)).garment_mesh()
+    case, g, rest_truth, (Vs, Fs) = truth_outline_case(template, seed, bend)
     radii, body = args.radii, (case.body_vertices, case.body_faces)
     row = {"template": template, "seed": seed, "bend_stiffness_Nm": bend, "scan": fold_curvature(Vs, Fs, radii),
            "truth": {"raw": fold_curvature(case.garment_x, case.garment.faces, radii),

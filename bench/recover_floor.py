@@ -64,16 +64,25 @@ def truth_handles(g, cage, gt) -> np.ndarray:
     return zeta
 
 
-def floor_case(template: str, seed: int, bend: float, args) -> dict:
-    planes = args.contact_normals
-    case = make_case(template, seed=seed, bend_stiffness=bend, contact_normals=planes)
+def truth_outline_case(template: str, seed: int, bend: float, contact_normals=None):
+    """(the benchmark case, the template g on its 4 cm mesh for the case's body, its rest with the
+    truth's outline (truth_handles through the cage), the scan's garment mesh (V m, F) as the
+    recovery sees it) — also bench/fold_curvature.py's."""
+    case = make_case(template, seed=seed, bend_stiffness=bend, contact_normals=contact_normals)
     lm = BodyModel.default().landmarks(case.body_params)
     g = make_template(template, landmarks=lm, edge_length=0.04)
     cage = build_cage(g)
     rest_truth = cage.rest(truth_handles(g, cage, case.garment))
-    # the scan as the recovery sees it (bench/recover.py's chamfer_truth_cm is truth_drape_cm here)
     Vs, Fs = scan_for_recovery((case.scan_vertices, case.scan_faces, case.scan_labels),
                                RecoverOptions.from_config(units=case.units, up=case.up)).garment_mesh()
+    return case, g, rest_truth, (Vs, Fs)
+
+
+def floor_case(template: str, seed: int, bend: float, args) -> dict:
+    planes = args.contact_normals
+    # the scan as the recovery sees it (bench/recover.py's chamfer_truth_cm is truth_drape_cm here)
+    case, g, rest_truth, (Vs, Fs) = truth_outline_case(template, seed, bend, planes)
+    lm = BodyModel.default().landmarks(case.body_params)   # the truth's re-triangulations below
     cm = lambda x, F: 100 * chamfer_meshes(np.asarray(x), F, Vs, Fs, samples=20000)
 
     def cloth(rest, b=bend, x0=g.x0):

@@ -2,27 +2,20 @@
 Y-up fitted the body model badly and its drape fell off the body (SIMULATION_FAILED, a message
 about the drape). Now `up` takes -y / -z, and a full scan whose body fits far better turned over
 is refused naming the up axis to give (recovery._refuse_upside_down)."""
-import pathlib
-
 import numpy as np
 import pytest
-import trimesh
 
+import bundled_sample
+from bundled_sample import QUICK
 from diffavatar_core.pipeline import recover
 from diffavatar_core.pipeline.recovery import RecoveryError
 from diffavatar_core.scan import load_scan
 from diffavatar_core.scan.frame import UP_ROTATIONS
 
-SAMPLE = pathlib.Path(__file__).resolve().parents[2] / "diffavatar_core" / "data" / "sample_scan.ply"
-QUICK = dict(units="cm", iterations=0, measurement_fit_iterations=0, measurement_fit_bending=[],
-             template_sizing=False, bending_range_offsets=[], bending_candidates=[], fresh_every=0)
-
 
 @pytest.fixture(scope="module")
 def sample_arrays():
-    m = trimesh.load(SAMPLE, process=False)
-    labels = np.asarray(m.metadata["_ply_raw"]["vertex"]["data"]["label"]).astype(np.int64)
-    return np.asarray(m.vertices, np.float64), np.asarray(m.faces, np.int64), labels
+    return bundled_sample.sample_arrays()
 
 
 @pytest.mark.parametrize("up", ["-y", "-z", "z"])

@@ -11,20 +11,15 @@ import trimesh
 
 from diffavatar_core import scan as sv
 from diffavatar_core.scan.face_labels import face_to_vertex_labels
+from tube_mesh import tube_quads
 
 SAMPLE = pathlib.Path(__file__).resolve().parents[2] / "diffavatar_core" / "data" / "sample_scan.ply"
 GARMENTS = (1, 2, 3, 4)   # config/labels.yaml: upper, dress, skirt, pants
 
 
 def _tube(n_phi=48, n_y=40, r=0.2, y0=0.3, y1=1.3):
-    """An open cylinder, m: V (n_y·n_phi, 3), rings of n_phi vertices from y0 up to y1, and its
-    quads (i, i + n_phi, j + n_phi, j) (Q, 4), ring by ring."""
-    phi = 2 * np.pi * np.arange(n_phi) / n_phi
-    y = np.repeat(np.linspace(y0, y1, n_y), n_phi)
-    V = np.column_stack([r * np.cos(np.tile(phi, n_y)), y, r * np.sin(np.tile(phi, n_y))])
-    i, j = np.meshgrid(np.arange(n_y - 1), np.arange(n_phi), indexing="ij")
-    a, b = (i * n_phi + j).ravel(), (i * n_phi + (j + 1) % n_phi).ravel()
-    return V, np.stack([a, a + n_phi, b + n_phi, b], 1)
+    """tube_mesh.tube_quads: V (n_y·n_phi, 3) and its quads (a, a + n_phi, b + n_phi, b), band by band."""
+    return tube_quads(n_phi, n_y, r, y0, y1)
 
 
 def _tris(Q):

@@ -8,25 +8,8 @@ import pytest
 
 from diffavatar_core import scan as sv
 from diffavatar_core.scan.cleaning import merge_duplicate_vertices
-
-
-def _tube(n_phi=24, n_y=10, r=0.2, y0=0.5, y1=1.0):
-    """An open cylinder (a skirt's shape), m: (V (n_y·n_phi, 3), F)."""
-    phi = 2 * np.pi * np.arange(n_phi) / n_phi
-    y = np.repeat(np.linspace(y0, y1, n_y), n_phi)
-    V = np.column_stack([r * np.cos(np.tile(phi, n_y)), y, r * np.sin(np.tile(phi, n_y))])
-    i, j = np.meshgrid(np.arange(n_y - 1), np.arange(n_phi), indexing="ij")
-    a, b = (i * n_phi + j).ravel(), (i * n_phi + (j + 1) % n_phi).ravel()
-    return V, np.concatenate([np.stack([a, a + n_phi, b], 1), np.stack([b, a + n_phi, b + n_phi], 1)])
-
-
-def _refused(cls, code, *words, call):
-    with pytest.raises(cls) as info:
-        call()
-    assert info.value.code == code, (type(info.value), info.value.code)
-    for w in words:
-        assert w in str(info.value), (w, str(info.value))
-    return str(info.value)
+from refusal import refused as _refused
+from tube_mesh import tube as _tube
 
 
 def test_coincident_vertices_merge_in_n_log_n():

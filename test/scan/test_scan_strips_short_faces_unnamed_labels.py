@@ -13,23 +13,16 @@ import trimesh
 from diffavatar_core import scan as sv
 from diffavatar_core.scan.labels import LabelMap
 from diffavatar_core.scan.ply_reader import strips_to_triangles
+from refusal import refused as _refused
+from tube_mesh import tube
 
 SAMPLE = pathlib.Path(__file__).resolve().parents[2] / "diffavatar_core" / "data" / "sample_scan.ply"
 N_PHI = 24
 
 
 def _tube(n_phi=N_PHI, n_y=12, r=0.2, y0=0.4, y1=1.0):
-    """An open cylinder (a skirt's shape), m: (V, F), each ring band's triangles in order
-    (a, a + n, b), (b, a + n, b + n) — the triangles of the strip a0, a0 + n, a1, a1 + n, ..."""
-    phi = 2 * np.pi * np.arange(n_phi) / n_phi
-    y = np.repeat(np.linspace(y0, y1, n_y), n_phi)
-    V = np.column_stack([r * np.cos(np.tile(phi, n_y)), y, r * np.sin(np.tile(phi, n_y))])
-    F = []
-    for i in range(n_y - 1):
-        for j in range(n_phi):
-            a, b = i * n_phi + j, i * n_phi + (j + 1) % n_phi
-            F += [(a, a + n_phi, b), (b, a + n_phi, b + n_phi)]
-    return V, np.array(F)
+    """tube_mesh.tube, each band's triangles in the order of its triangle strip."""
+    return tube(n_phi, n_y, r, y0, y1, interleaved=True)
 
 
 def _band_strips(n_y, n_phi=N_PHI):
@@ -79,15 +72,6 @@ def _ply(path, V, faces=None, strips=None, vlabels=None, slabels=None, fmt="asci
             body += np.uint8(slabels[k]).tobytes()
     path.write_bytes(("\n".join(head) + "\n").encode() + body)
     return path
-
-
-def _refused(cls, code, *words, call):
-    with pytest.raises(cls) as info:
-        call()
-    assert info.value.code == code, (type(info.value), info.value.code)
-    for w in words:
-        assert w in str(info.value), (w, str(info.value))
-    return str(info.value)
 
 
 def _same_scan(d, ref):
