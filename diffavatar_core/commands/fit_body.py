@@ -6,6 +6,7 @@ import pathlib
 import sys
 
 import numpy as np
+
 from ..scan.frame import UP_AXES
 
 

@@ -7,6 +7,7 @@ import signal
 import sys
 import threading
 import time
+
 from ..scan.frame import UP_AXES
 
 
