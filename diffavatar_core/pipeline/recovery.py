@@ -32,7 +32,7 @@ from ..pattern.garment import Garment
 from ..pattern.templates import FIT_MEASUREMENTS, TEMPLATES, make_template, template_measurements
 from ..scan import ScanData, load_scan
 from ..scan.errors import ScanError
-from ..scan.frame import FLIPPED_UP, lying_hint
+from ..scan.frame import FLIPPED_UP, lying_hint, upside_down_hint
 from ..sim.cloth import Cloth
 from ..sim.material import ClothMaterial
 from .coopt import co_optimize, seam_mismatch_pct
@@ -388,6 +388,9 @@ def _recover(scan, opts: RecoverOptions, ctl: "_Control", body_model, t0: float)
         g = remake(edge_length=opts.edge_length)
     material = ClothMaterial(bend_stiffness=opts.bend_stiffness)
     early_warnings = []
+    hint = upside_down_hint(data.boundaries, data.transform)   # a garment-only scan has no body fit to tell
+    if hint:
+        early_warnings.append(hint)
 
     def initial_drape(garment, planes):
         c = _garment_cloth(garment, garment.rest, garment.x0, material, (body_vertices, model.faces),

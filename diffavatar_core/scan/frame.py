@@ -97,6 +97,33 @@ def centring_origin(V_core: np.ndarray) -> np.ndarray:
     return np.round(c) if np.abs(c).max() > FAR_FROM_ORIGIN else np.zeros(3)
 
 
+#: a garment whose highest opening (waist, neckline) is longer than this × its hem hangs upside down
+UPSIDE_DOWN_OPENINGS = 1.25
+
+
+def upside_down_hint(boundaries: dict, transform: ScanTransform) -> str:
+    """'' unless the garment's highest opening (waist or neckline: the highest central loop, as
+    scan/boundary.py names them) is more than UPSIDE_DOWN_OPENINGS × as long as its hem (the
+    lowest) — a skirt or top is narrower at its waist or neck than at its hem; the bundled skirt
+    read upside down had a 140 cm 'waist' over a 77 cm 'hem' and recovered 2.5 cm off without a
+    word — else a hint naming both lengths and the up axis that turns the scan over.
+    boundaries: {opening name: (K, 3) closed loop, m}."""
+    top = next((k for k in ("waist", "neckline") if k in boundaries), None)
+    if top is None or "hem" not in boundaries:
+        return ""
+
+    def perimeter(P):
+        P = np.asarray(P, np.float64)
+        return float(np.linalg.norm(np.roll(P, -1, axis=0) - P, axis=1).sum())
+    lt, lh = perimeter(boundaries[top]), perimeter(boundaries["hem"])
+    if not lt > UPSIDE_DOWN_OPENINGS * lh:
+        return ""
+    other = FLIPPED_UP[transform.up]
+    return (f"the garment's highest opening ('{top}', {100 * lt:.0f} cm around) is {lt / lh:.1f}× as long as its "
+            f"lowest ('hem', {100 * lh:.0f} cm): is the scan upside down? up={other} reads it turned over (on the "
+            f"command line --up={other})")
+
+
 def lying_hint(V_core: np.ndarray, transform: ScanTransform) -> str:
     """'' for a scan that stands, else a hint that its up axis may be wrong, naming the other
     one and the height it would give (core-frame vertices, m, as converted from the scan). A

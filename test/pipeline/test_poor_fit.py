@@ -25,6 +25,10 @@ def _misfit(r):
     return [w for w in r.warnings if "does not describe this scan" in w]
 
 
+def _upside_down(r):
+    return [w for w in r.warnings if "upside down" in w]
+
+
 def test_a_skirt_recovered_as_a_tshirt_is_said_to_misfit_and_as_a_skirt_is_not(skirt_only):
     wrong = recover(skirt_only, {**QUICK, "garment_type": "tshirt"})
     assert wrong.metrics["chamfer_final_cm"] > POOR_FIT_CM
@@ -32,4 +36,13 @@ def test_a_skirt_recovered_as_a_tshirt_is_said_to_misfit_and_as_a_skirt_is_not(s
     assert "garment type 'tshirt'" in w and "template 'tshirt'" in w and f"{wrong.metrics['chamfer_final_cm']:.1f} cm" in w
     right = recover(skirt_only, {**QUICK, "garment_type": "skirt"})
     assert right.metrics["chamfer_final_cm"] < 1.0   # a fit: well below the threshold
-    assert not _misfit(right)
+    assert not _misfit(right) and not _upside_down(right)
+
+
+def test_a_garment_only_scan_upside_down_is_hinted(skirt_only):
+    """The skirt alone turned over (a Y-down file read as Y-up): no body to fit, and it recovered
+    2.5 cm off — under the misfit warning's 3 cm — without a word; its openings now say it."""
+    V, F = skirt_only
+    r = recover((V * [1.0, -1.0, -1.0], F), {**QUICK, "garment_type": "skirt"})
+    (w,) = _upside_down(r)
+    assert "'waist'" in w and "'hem'" in w and "up=-y" in w

@@ -66,3 +66,23 @@ def test_a_scan_near_its_origin_keeps_its_coordinates_and_a_far_one_stands_on_th
         np.testing.assert_array_equal(o, np.round(offset))
         shifted = person + offset - o
         assert abs(np.percentile(shifted[:, 1], 1.0)) < 0.5 and np.abs(np.median(shifted[:, [0, 2]], axis=0)).max() < 0.5
+
+
+def test_an_upside_down_garment_is_hinted_by_its_openings():
+    """upside_down_hint: a waist or neckline longer than 1.25 × the hem (a skirt turned over: the
+    rules name the top loop 'waist') gets a hint naming both lengths and the up axis to give; a
+    garment the right way up, or without both openings, gets none."""
+    from diffavatar_core.scan.frame import upside_down_hint
+
+    def ring(radius, y, n=64):
+        t = 2 * np.pi * np.arange(n) / n
+        return np.column_stack([radius * np.cos(t), np.full(n, y), radius * np.sin(t)])
+    t = ScanTransform.from_options("cm", "y")
+    upright = {"waist": ring(0.12, 1.0), "hem": ring(0.22, 0.5)}
+    assert upside_down_hint(upright, t) == ""
+    assert upside_down_hint({"hem": ring(0.22, 0.5)}, t) == ""
+    turned = {"waist": ring(0.22, -0.5), "hem": ring(0.12, -1.0)}   # the same skirt read the wrong way up
+    h = upside_down_hint(turned, t)
+    assert "upside down" in h and "up=-y" in h and "'waist', 138 cm" in h and "'hem', 75 cm" in h
+    assert "up=y" in upside_down_hint(turned, ScanTransform.from_options("cm", "-y"))
+    assert upside_down_hint({"neckline": ring(0.135, 1.4), "hem": ring(0.12, 0.9)}, t) == ""   # 1.13×: e.g. off-shoulder
