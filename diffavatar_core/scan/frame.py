@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .boundary import LoopGeometry
 from .errors import BadOptionError, ImplausibleSizeError
 
 UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001}
@@ -111,11 +112,7 @@ def upside_down_hint(boundaries: dict, transform: ScanTransform) -> str:
     top = next((k for k in ("waist", "neckline") if k in boundaries), None)
     if top is None or "hem" not in boundaries:
         return ""
-
-    def perimeter(P):
-        P = np.asarray(P, np.float64)
-        return float(np.linalg.norm(np.roll(P, -1, axis=0) - P, axis=1).sum())
-    lt, lh = perimeter(boundaries[top]), perimeter(boundaries["hem"])
+    lt, lh = (LoopGeometry.of(np.asarray(boundaries[k], np.float64)).perimeter for k in (top, "hem"))
     if not lt > UPSIDE_DOWN_OPENINGS * lh:
         return ""
     other = FLIPPED_UP[transform.up]

@@ -153,16 +153,28 @@ def _ply_labels(elements: dict, source: str, face_labels: bool = False) -> np.nd
     raw, by_lower = ply_element(elements, "vertex")
     if raw is None:
         return None
-    for prop in LABEL_PROPERTIES:
-        if prop in by_lower:
-            return np.asarray(raw[by_lower[prop]]).reshape(-1)
-    seg = [n for low, n in by_lower.items() if low in SEGMENTATION_PROPERTIES]
-    if seg and not face_labels:
-        raise LabelError(f"{source}: no per-vertex 'label' property, but one named {seg[0]!r}: if it holds the "
-                         f"segmentation, rename it 'label' (its values as config/labels.yaml names the classes); "
-                         f"if the scan is garment-only, remove it — read as garment-only, every vertex (a body "
-                         f"too) would be taken for the garment")
+    prop = _label_property(by_lower)
+    if prop is not None:
+        return np.asarray(raw[prop]).reshape(-1)
+    if not face_labels:
+        _refuse_other_segmentation(by_lower, source, "vertex")
     return None
+
+
+def _label_property(by_lower: dict) -> str | None:
+    """The element's label property (LABEL_PROPERTIES, first match, any letter case), or None."""
+    return next((by_lower[q] for q in LABEL_PROPERTIES if q in by_lower), None)
+
+
+def _refuse_other_segmentation(by_lower: dict, source: str, element: str) -> None:
+    """LabelError when an element without a label property has one named as a segmentation
+    (SEGMENTATION_PROPERTIES): read as garment-only, the body too would become the garment."""
+    seg = [n for low, n in by_lower.items() if low in SEGMENTATION_PROPERTIES]
+    if seg:
+        raise LabelError(f"{source}: no per-{element} 'label' property, but a per-{element} one named {seg[0]!r}: "
+                         f"if it holds the segmentation, rename it 'label' (its values as config/labels.yaml names "
+                         f"the classes); if the scan is garment-only, remove it — read as garment-only, every "
+                         f"{element} (a body too) would be taken for the garment")
 
 
 def read_obj(path: pathlib.Path) -> tuple[np.ndarray, np.ndarray]:
@@ -288,7 +300,7 @@ def read_scan_file(path: str | pathlib.Path, label_map=None) -> RawScan:
 def _ply_strip_labels(ply: PlyMesh, source: str) -> np.ndarray | None:
     """Per-triangle labels of the strips' triangles (each its strip's `label`), or None."""
     raw, by_lower = ply_element(ply.elements, "tristrips")
-    prop = next((by_lower[q] for q in LABEL_PROPERTIES if q in by_lower), None)
+    prop = _label_property(by_lower)
     if raw is None or prop is None:
         return None
     SL = np.asarray(raw[prop])
@@ -311,14 +323,10 @@ def _ply_face_labels(elements: dict, source: str, F: np.ndarray, has_vertex_labe
     raw, by_lower = ply_element(elements, "face")
     if raw is None:
         return None, F
-    prop = next((by_lower[q] for q in LABEL_PROPERTIES if q in by_lower), None)
+    prop = _label_property(by_lower)
     if prop is None:
-        seg = [n for low, n in by_lower.items() if low in SEGMENTATION_PROPERTIES]
-        if seg and not has_vertex_labels:
-            raise LabelError(f"{source}: no 'label' property, but a per-face one named {seg[0]!r}: if it holds "
-                             f"the segmentation, rename it 'label' (per-face labels are read); if the scan is "
-                             f"garment-only, remove it — read as garment-only, every face (a body too) would be "
-                             f"taken for the garment")
+        if not has_vertex_labels:
+            _refuse_other_segmentation(by_lower, source, "face")
         return None, F
     try:
         FL = np.asarray(raw[prop])
