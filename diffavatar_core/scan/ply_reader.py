@@ -1,7 +1,7 @@
 """Reading PLY files (ascii or binary): the vertices, the `face` element's polygons (triangulated)
 and the `tristrips` element's triangle strips (OpenGL GL_TRIANGLE_STRIP, restarts at -1), checked
 against the header's counts. trimesh reads what it can; binary files whose lists vary in length
-(strips) are read here. The label properties are scan/loading.py's (ply_element gives them)."""
+(strips, or faces of mixed sizes: triangles and quads) are read here. The label properties are scan/loading.py's (ply_element gives them)."""
 from __future__ import annotations
 
 import pathlib
@@ -202,8 +202,16 @@ def read_ply(path: str | pathlib.Path) -> PlyMesh:
                     elements = load_ply(fh, fix_texture=False, skip_materials=True)["metadata"]["_ply_raw"]
             m = None
         else:
-            m = trimesh.load(str(p), file_type="ply", force="mesh", process=False)
-            elements = (m.metadata or {}).get("_ply_raw") or {}
+            try:
+                m = trimesh.load(str(p), file_type="ply", force="mesh", process=False)
+                elements = (m.metadata or {}).get("_ply_raw") or {}
+            except Exception:
+                if not (header and header[0].startswith("binary")):
+                    raise
+                # trimesh reads a binary face list only when every face has one length ("PLY is
+                # unexpected length!" for a mesh of triangles and quads): read the elements here,
+                # the polygons fanned in file order
+                elements, m = _read_binary_ply(p, header), None
     except ScanFormatError:
         raise
     except Exception as exc:  # trimesh raises many types for unreadable files

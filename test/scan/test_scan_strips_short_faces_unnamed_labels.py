@@ -1,4 +1,5 @@
-"""PLY faces stored as triangle strips (read, not taken for a point cloud), faces of fewer than 3
+"""PLY faces stored as triangle strips (read, not taken for a point cloud) or as polygons of mixed
+sizes (a binary file of triangles and quads: read, not refused), faces of fewer than 3
 vertices (refused by name, not a "truncated file"), label values the label map does not name
 (visible: a warning, or refused when they cover a sizeable part of the scan, not silently left
 out of both body and garment), a custom label map reaching the per-face conversion through
@@ -164,6 +165,35 @@ def test_strips_that_hold_no_triangle_and_elements_that_hold_no_faces_are_named(
                  "element edge 1\nproperty int vertex1\nproperty int vertex2\nend_header\n0 0 0\n1 0 0\n0 1 0\n0 1\n")
     _refused(sv.EmptyScanError, "EMPTY_MESH", "'edge' (1)", "'face' and 'tristrips'",
              call=lambda: sv.read_scan_file(q))
+
+
+@pytest.mark.parametrize("fmt", ["ascii", "binary_little_endian", "binary_big_endian"])
+def test_a_mesh_of_triangles_and_quads_reads_back_to_its_triangles(tmp_path, fmt):
+    """A grid written as quads on every other cell and as triangle pairs on the rest (a binary
+    file of mixed face sizes, which trimesh refuses: 'PLY is unexpected length!') reads as every
+    cell's two triangles, a quad (a, b, c, d) fanned to (a, b, c), (a, c, d) — in file order when
+    read here (binary); trimesh's order and rotation, (a, b, c), (c, d, a) after the triangles,
+    when it reads the file (ascii) —, with its per-vertex labels."""
+    n = 6
+    i, j = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
+    V = np.column_stack([i.ravel() * 0.05, j.ravel() * 0.05 + 0.5, np.zeros(n * n)])
+    labels = (i.ravel() >= n // 2).astype(np.uint8) * 3
+    faces, expected = [], []
+    for a in (ci * n + cj for ci in range(n - 1) for cj in range(n - 1)):
+        quad = [a, a + n, a + n + 1, a + 1]
+        tris = [quad[:3], [quad[0], quad[2], quad[3]]]
+        faces += [quad] if len(faces) % 3 == 0 else tris
+        expected += tris
+    path = _ply(tmp_path / "mixed.ply", V, faces=faces, vlabels=labels, fmt=fmt)
+    raw = sv.read_scan_file(path)
+    if fmt == "ascii":   # trimesh's (c, d, a): the same triangle, the same winding
+        def canonical(T):
+            return sorted(tuple(np.roll(t, -int(np.argmin(t))).tolist()) for t in np.asarray(T))
+        assert canonical(raw.faces) == canonical(expected)
+    else:
+        np.testing.assert_array_equal(raw.faces, expected)
+    np.testing.assert_array_equal(raw.vertices, V)
+    np.testing.assert_array_equal(raw.labels, labels)
 
 
 @pytest.mark.parametrize("which", ["all", "one"])
