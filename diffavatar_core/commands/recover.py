@@ -65,20 +65,25 @@ class ProgressBar:
 
 
 @contextlib.contextmanager
-def _sigint_cancels(token):
+def _sigint_cancels(token, keeping=lambda: False):
     """Ctrl-C (SIGINT) during the recovery cancels `token` — so the candidate drapes running in
     other threads (candidate_workers.py) stop within an iteration too, instead of being waited
-    for — and interrupts the main thread as usual (KeyboardInterrupt: cli.main says 'cancelled',
-    exit status 130). The previous handler is back afterwards; off the main thread, or with
-    SIGINT not at Python's default (ignored, or the caller's own handler), nothing changes."""
+    for. While `keeping()` is false it also interrupts the main thread as usual (KeyboardInterrupt:
+    cli.main says 'cancelled', exit status 130); once true (the optimization has begun) the first
+    Ctrl-C only cancels — the recovery ends at its next check with what it produced
+    (RecoveryCancelled), to be written — and a second one interrupts. The previous handler is back
+    afterwards; off the main thread, or with SIGINT not at Python's default (ignored, or the
+    caller's own handler), nothing changes."""
     if (threading.current_thread() is not threading.main_thread()
             or signal.getsignal(signal.SIGINT) is not signal.default_int_handler):   # e.g. ignored (a background job)
         yield
         return
 
     def on_sigint(signum, frame):
+        first = not token.cancelled
         token.cancel()
-        raise KeyboardInterrupt
+        if not (first and keeping()):
+            raise KeyboardInterrupt
     previous = signal.signal(signal.SIGINT, on_sigint)
     try:
         yield
@@ -98,10 +103,19 @@ def _run(args) -> int:
                                       output_edge_length=args.output_edge)
     bar = None if args.quiet else ProgressBar()
     from .. import CancelToken
-    cancel = CancelToken()
+    from ..pipeline.recovery import RecoveryCancelled
+    cancel, stages = CancelToken(), set()
+
+    def progress(stage, *rest):
+        stages.add(stage)
+        if bar is not None:
+            bar(stage, *rest)
+    cancelled = None
     try:
-        with _sigint_cancels(cancel):
-            result = recover(pathlib.Path(args.scan), opts, progress=bar, cancel=cancel)
+        with _sigint_cancels(cancel, keeping=lambda: "optimize" in stages):
+            result = recover(pathlib.Path(args.scan), opts, progress=progress, cancel=cancel)
+    except RecoveryCancelled as exc:   # what the optimization produced until then is kept
+        result, cancelled = exc.result, exc
     finally:
         if bar is not None:
             bar.close()
@@ -109,6 +123,17 @@ def _run(args) -> int:
         out = write_result(result, args.out, scan=result.scan_mesh)
     except OSError as exc:   # disk full, the directory removed meanwhile, ...: named, not a traceback
         raise write_failed(args.out, exc, "writing the recovery's result") from None
+    _summary(result, out)
+    if cancelled is not None:   # as cli.main's 'diffavatar: cancelled' (exit status 130), saying what was kept
+        from ..cli import EXIT_CANCELLED
+        print(f"diffavatar: {cancelled}; what it had produced is in {out}/ (result.json: metrics.stopped, "
+              f"metrics.cancelled_during, warnings)", file=sys.stderr)
+        return EXIT_CANCELLED
+    return 0
+
+
+def _summary(result, out) -> None:
+    """The result's summary (JSON) and where its files are, on stdout."""
     m = result.metrics
     fit, sizing = m.get("measurement_fit") or {}, m.get("template_sizing") or {}
     print(json.dumps({
@@ -122,7 +147,6 @@ def _run(args) -> int:
         "seam_length_mismatch_max_pct": round(m["seam_length_mismatch_max_pct"], 3), "ssim": m.get("ssim"),
         "template_sized_m": {n: round(v, 4) for n, v in (sizing.get("measurements_m") or {}).items()} if sizing.get("kept") else {},
         "template_measurements_m": {n: round(v, 4) for n, v in zip(fit.get("names", []), fit.get("fitted_m", []))},
-        "warnings": result.warnings}, indent=2))
+        "cancelled_during": m.get("cancelled_during"), "warnings": result.warnings}, indent=2))
     print(f"outputs in {out}/: result.json, pattern.json/.svg/.png, garment_rest.obj, garment_draped.obj, "
           f"body.obj, loss.png, preview.png")
-    return 0

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._core import Cancelled
 from ..adjoint import equilibrium_gradient
 from ..body.params import BodyParams
 from ..loss import body_data_loss, boundary_length_loss, boundary_loss, garment_samples, interior_loss, polyline_length
@@ -115,6 +116,9 @@ class CoOptObjective:
         self.x_initial = self.x_warm.copy()   # the template's initial drape (try_initial)
         self.x_last = self.x_warm
         self._undo = []          # warm starts before the last commits (revert)
+        self.params_last = None  # the parameters x_last is the drape of (the last evaluation)
+        self.current = None      # (params, drape) of the optimizer's current iterate (commit, mark_current)
+        self._current_undo = []  # `current` before the last commits (revert)
         self.last_fresh = None   # (φ warm, φ fresh) of the last try_fresh
         self.last_guided = None  # (φ warm, φ guided) of the last try_guided
         self.last_initial = None  # (φ warm, φ from the initial drape) of the last try_initial
@@ -230,7 +234,7 @@ class CoOptObjective:
             terms["body_prior"] = float(dnu @ dnu + dpsi @ dpsi)
             value += w.body_prior * terms["body_prior"]
         if not gradient:
-            self.x_last = x
+            self.x_last, self.params_last = x, params
             return float(value), None, terms
         dphi_dx = w.interior * li.grad + (w.boundary * lb.grad + w.boundary_length * ll.grad if lb is not None else 0.0)
         ga = equilibrium_gradient(self.cloth, dphi_dx, cancel=self.cancel)   # the adjoint solve
@@ -249,7 +253,7 @@ class CoOptObjective:
             gvec = self.model.vjp(bp, g_body)
             grads["shape"] = gvec[sl["shape"]] + 2 * w.body_prior * dnu
             grads["pose"] = gvec[sl["pose"]] + 2 * w.body_prior * dpsi
-        self.x_last = x
+        self.x_last, self.params_last = x, params
         return float(value), grads, terms
 
     def restore(self, params) -> None:
@@ -495,13 +499,14 @@ class CoOptObjective:
         (the candidate re-draped from where it leaves the warm start)."""
         self.x_warm = x_keep.copy()
         if prepare is not None:
-            undo = list(self._undo)   # what prepare commits is not this objective's history
+            # what prepare commits is not this objective's history
+            undo, current, current_undo = list(self._undo), self.current, list(self._current_undo)
             try:
                 cand = prepare(self, cand)
             except (ValueError, FloatingPointError):
                 return None
             finally:
-                self._undo = undo
+                self._undo, self.current, self._current_undo = undo, current, current_undo
         v = self._value_or_inf(cand)        # re-draped at k_b·10^d from the current drape
         if not np.isfinite(v):
             return None
@@ -528,7 +533,7 @@ class CoOptObjective:
         The options, scan, samples and body model are shared (read only)."""
         t = copy.copy(self)
         t.cloth = self.cloth.clone()
-        t.x_warm, t._undo = np.array(self.x_warm), list(self._undo)
+        t.x_warm, t._undo, t._current_undo = np.array(self.x_warm), list(self._undo), list(self._current_undo)
         t._fresh_seen = dict(self._fresh_seen)
         return t
 
@@ -576,14 +581,29 @@ class CoOptObjective:
         """The last evaluated point became the optimizer's current iterate: later re-drapes start
         from (and are anchored to) its drape. Rejected trials never become warm starts — one may
         have found another equilibrium (a skirt slid off the hips)."""
-        self._undo = (self._undo + [self.x_warm])[-(self.opts.reevaluations + 2):]
+        keep = self.opts.reevaluations + 2
+        self._undo = (self._undo + [self.x_warm])[-keep:]
+        self._current_undo = (self._current_undo + [self.current])[-keep:]
         self.x_warm = self.x_last
+        self.current = (_copy_params(self.params_last), np.array(self.x_last))
 
     def revert(self) -> None:
         """Undoes the last commit() (its iterate was not accepted after all). The warm starts of
         the last reevaluations + 2 commits are kept: every commit of one line-search trial."""
         if self._undo:
             self.x_warm = self._undo.pop()
+        if self._current_undo:
+            self.current = self._current_undo.pop()
+
+    def mark_current(self, params) -> None:
+        """`params` became the current iterate outside the optimizer's steps (the start, a kept
+        candidate of try_fresh … try_bending), its drape the warm start x_warm: what a cancelled run
+        returns (co_optimize) is the last such iterate or the optimizer's last commit."""
+        self.current = (_copy_params(params), np.array(self.x_warm))
+
+
+def _copy_params(params) -> dict:
+    return {g: np.array(v, np.float64, copy=True) for g, v in params.items()}
 
 
 def _params_key(params) -> tuple:
@@ -609,11 +629,48 @@ def co_optimize(cloth, garment, scan_points, scan_loops: dict, opts: RecoverOpti
     search_bending) and, when it moved, the measurements fitted again from there; the handles start
     on the fitted outline. The fits' iterations come first in the history, marked stage
     'measurements'. At the end, the bendings judged alike the returned one (bending_range.py,
-    opts.bending_range_offsets; on a twin, nothing returned changes)."""
+    opts.bending_range_offsets; on a twin, nothing returned changes).
+
+    Cancelled (`cancel`, or `cancelled()` in a Python loop) at any point: the current iterate — the
+    optimizer's last accepted step, a kept candidate, or the start — in the drape φ was evaluated
+    on (its anchored equilibrium, not re-draped: a cancel ends the run at once) is returned with
+    stopped 'cancelled'; nothing after it runs (no final candidates, no bending range)."""
     obj = CoOptObjective(cloth, garment, scan_points, scan_loops, opts, cage, body_model, body_params, cancel,
                          body_points, scan_mesh)
     params = obj.initial_params()
-    history, fit, base, stop_reason, initial_used, bending_used = [], None, 0, "", [], []
+    obj.mark_current(params)   # the template's initial drape
+    history = []
+    try:
+        result = _co_optimize(obj, params, history, measurement_map, on_iteration, cancelled)
+    except Cancelled as exc:
+        return _cancelled_result(obj, history, body_params, str(exc))
+    if result.stopped == "cancelled":   # the optimizer stopped between evaluations
+        return _cancelled_result(obj, history, body_params, "cancelled")
+    return result
+
+
+def _cancelled_result(obj: CoOptObjective, history: list, body_params, reason: str) -> CoOptResult:
+    """co_optimize's result when cancelled: obj.current, its controls set on the cloth at its
+    drape; iterations: the co-optimization steps in `history` (after the fits' entries)."""
+    params, x = obj.current
+    rest, bend, bp = obj.unpack(params)
+    bv = obj.model.pose(bp) if obj.use_body else None
+    stretch = obj.stretch(params)
+    obj.cloth.set_control(rest=rest, bend_stiffness=bend, body_vertices=bv, stretch_compliance=stretch)
+    obj.cloth.reset(x)
+    fits = [h["iteration"] for h in history if h.get("stage") == "measurements"]
+    last = history[-1] if history else None
+    it = last["iteration"] - (fits[-1] if fits else 0) if last is not None and last.get("stage") != "measurements" else 0
+    return CoOptResult(rest, bend, bp if obj.use_body else body_params, bv, np.array(x), list(history), it, 0,
+                       "cancelled", stretch_compliance=np.asarray(obj.cloth.control.stretch_compliance).reshape(-1, 3).copy(),
+                       stop_reason=reason)
+
+
+def _co_optimize(obj: CoOptObjective, params: dict, history: list, measurement_map, on_iteration,
+                 cancelled) -> CoOptResult:
+    """co_optimize's run; `history` is filled in place (what a cancel keeps)."""
+    cloth, opts, cage, body_params = obj.cloth, obj.opts, obj.cage, obj.p0
+    fit, base, stop_reason, initial_used, bending_used = None, 0, "", [], []
     searched, brange = None, None
     if opts.iterations and opts.measurement_fit_iterations and measurement_map is not None:
         def report_fit(h, offset=0):
@@ -624,7 +681,7 @@ def co_optimize(cloth, garment, scan_points, scan_loops: dict, opts: RecoverOpti
             fit = fit_measurements(obj, measurement_map, params, opts.measurement_fit_iterations,
                                    opts.step_sizes.measurements, on_iteration=report_fit, cancelled=cancelled)
         except (ValueError, FloatingPointError):   # not evaluable at the template: the co-optimization decides
-            history = []
+            history.clear()
         if (fit is not None and fit.stopped != "cancelled" and opts.measurement_fit_bending
                 and "log_bend" in params):
             # the material at the fitted outline, then the measurements again at it: fitted under the
@@ -640,6 +697,7 @@ def co_optimize(cloth, garment, scan_points, scan_loops: dict, opts: RecoverOpti
                                          opts.step_sizes.measurements, cancelled=cancelled, start=start)
                     return {**p, "handles": measurement_map.parameters(f.handles, vertices=cage is None).copy()}
             params, searched = obj.search_bending(params, opts.measurement_fit_bending, cancelled, refit)
+            obj.mark_current(params)
             if any(searched["kept"]) and not cancelled():
                 try:
                     again = fit_measurements(obj, measurement_map, params, opts.measurement_fit_iterations,
@@ -655,7 +713,7 @@ def co_optimize(cloth, garment, scan_points, scan_loops: dict, opts: RecoverOpti
         best, it, rej, stopped, kept, gkept = params, 0, 0, "cancelled", 0, 0
     elif opts.iterations == 0:
         value, _, terms = obj(params)
-        history = [{"iteration": 0, "value": value, "terms": terms, "lr": obj.step_sizes()}]
+        history[:] = [{"iteration": 0, "value": value, "terms": terms, "lr": obj.step_sizes()}]
         if on_iteration:
             on_iteration(history[-1])
         best, it, rej, stopped, kept, gkept = params, 0, 0, "max_iterations", 0, 0
@@ -702,6 +760,7 @@ def co_optimize(cloth, garment, scan_points, scan_loops: dict, opts: RecoverOpti
                 if start >= bend_after:
                     params, b = obj.try_bending(params)
                     bending_used.append(b)
+                obj.mark_current(params)
             free = {g: v for g, v in params.items() if g not in held}
             lr = {g: v for g, v in obj.step_sizes().items() if g not in held}
 
@@ -737,6 +796,7 @@ def co_optimize(cloth, garment, scan_points, scan_loops: dict, opts: RecoverOpti
             guided_used.append(obj.try_guided(best))
             best, b = obj.try_bending(best)
             bending_used.append(b)
+            obj.mark_current(best)
             if not cancelled():   # on a twin: the returned drape and parameters are the same without it
                 # nothing kept: the check just judged these parameters from this warm start — its φ and
                 # candidates are the range's (the same re-drapes, bit for bit), not judged twice
@@ -744,7 +804,7 @@ def co_optimize(cloth, garment, scan_points, scan_loops: dict, opts: RecoverOpti
                 brange = bending_range(obj, best, opts.bending_range_offsets, opts.bending_margin, known)
         kept, gkept = int(sum(fresh_used)), int(sum(guided_used))
     rest, bend, bp = obj.unpack(best)
-    bv = body_model.pose(bp) if obj.use_body else None
+    bv = obj.model.pose(bp) if obj.use_body else None
     stretch = obj.stretch(best)
     try:
         obj.drape_at(rest, bend, bv, stretch)   # the best iterate's equilibrium

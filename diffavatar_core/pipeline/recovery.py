@@ -67,6 +67,17 @@ class RecoveryError(ValueError):
         self.code = code
 
 
+class RecoveryCancelled(_core.Cancelled):
+    """A recovery cancelled once its optimization had begun: `result` (a RecoveryResult) is what
+    it had produced — the optimization's current iterate (metrics.stopped 'cancelled') or, when
+    cancelled later, the optimized result without what was still to come (metrics.cancelled_during
+    names the stage; its warnings say what is missing). Cancelled before: diffavatar_core.Cancelled."""
+
+    def __init__(self, message: str, result):
+        super().__init__(message)
+        self.result = result
+
+
 class _Control:
     """Progress and cancellation from either the node's RunControl or the API's callbacks. The
     C++ calls watch `token`: the RunControl's, the caller's own CancelToken, or — for a
@@ -104,12 +115,13 @@ class _Control:
         if self.cancelled:
             raise _core.Cancelled(f"cancelled during {stage}")
 
-    def report(self, stage, iteration=0, max_iterations=0, loss=float("nan"), terms=None) -> None:
+    def report(self, stage, iteration=0, max_iterations=0, loss=float("nan"), terms=None, check=True) -> None:
         if self.rc is not None:
             self.rc.report(stage, iteration, max_iterations, loss, terms or {})
         if self.progress is not None:
             self.progress(stage, iteration, max_iterations, loss, terms or {})
-        self.check(stage)
+        if check:
+            self.check(stage)
 
 
 def sleeve_reach(boundaries: dict, lm) -> float | None:
@@ -304,7 +316,8 @@ def recover(scan, options=None, run_control=None, *, progress=None, cancel=None,
     node's message dict, or a preprocessed ScanData. options: RecoverOptions or a dict of
     overrides of the configured defaults (iterations, garment_type, template, units, up, ...).
     progress(stage, iteration, max_iterations, loss, terms) is called per stage and per
-    iteration; cancel: a threading.Event or CancelToken (raises diffavatar_core.Cancelled).
+    iteration; cancel: a threading.Event or CancelToken (raises diffavatar_core.Cancelled; once the
+    optimization has begun, RecoveryCancelled, a Cancelled carrying what was produced as `.result`).
     run_control: the node's RunControl (report/cancel), an alternative to progress/cancel.
     Raises ScanError / RecoveryError (ValueError) with a message naming the problem."""
     t0 = time.perf_counter()
@@ -480,7 +493,9 @@ def _recover(scan, opts: RecoverOptions, ctl: "_Control", body_model, t0: float)
                      body_params=body_params, on_iteration=on_iteration, cancelled=lambda: ctl.cancelled,
                      cancel=ctl.token, body_points=data.vertices[body_mask] if full else None,
                      scan_mesh=data.garment_mesh(), measurement_map=mmap)
-    ctl.check("optimize")
+    # a cancel from here on keeps what was produced (RecoveryCancelled): the stages still to come
+    # are skipped, the metrics (seconds) computed regardless
+    cancelled_in = "optimize" if co.stopped == "cancelled" else None
 
     body_final = co.body_vertices if co.body_vertices is not None else body_vertices
     if co.stretch_compliance is not None:   # the recovered compliances (opts.stretch; else the material's)
@@ -491,18 +506,24 @@ def _recover(scan, opts: RecoverOptions, ctl: "_Control", body_model, t0: float)
     if co.stopped == "invalid_start":
         warnings.append(f"the optimization stopped after {co.iterations} of {opts.iterations} iterations: its "
                         f"last iterate no longer re-draped ({co.stop_reason}); that iterate is returned")
+    if cancelled_in:
+        step = co.history[-1]["iteration"] if co.history else 0   # as the progress reports counted them
+        warnings.append(f"cancelled during the optimization at step {step} of {n_total}: the result is its current "
+                        f"iterate in the drape its loss was evaluated on (anchored to the previous iterate's drape, "
+                        f"not re-solved without anchors), on the optimized mesh (edge {opts.edge_length} m); no "
+                        f"bending range was judged")
 
     # output resolution (coarse-to-fine through the cage) ------------------------------------------
     g_out, rest_out, x_out, handles_out = g, co.rest, co.x, (cage.handles if cage is not None else None)
     output_drape = {"criterion": "equilibrium", "residual_tol": opts.residual_tol}
     fine_edge = opts.output_edge_length
-    if fine_edge and fine_edge < opts.edge_length:
+    if fine_edge and fine_edge < opts.edge_length and not cancelled_in:
         if cage is None or remake is None:
             warnings.append(f"output_edge_length {fine_edge} m needs the cage parametrization and a built-in or "
                             f"GarmentCode template; the optimized mesh (edge {opts.edge_length} m) is returned")
         else:
-            ctl.report("refine")
             try:
+                ctl.report("refine")
                 g_out, rest_out, x_out, settle = _fine_output(g, cage, co, remake(edge_length=fine_edge),
                                                               material, body_final, model.faces, opts, ctl.token)
                 handles_out = None
@@ -510,32 +531,45 @@ def _recover(scan, opts: RecoverOptions, ctl: "_Control", body_model, t0: float)
             except ValueError as exc:   # nothing produced so far is lost: keep the coarse result
                 warnings.append(f"the fine output mesh (edge {fine_edge} m) did not settle ({exc}); "
                                 f"the optimized mesh (edge {opts.edge_length} m) is returned")
+            except _core.Cancelled:
+                cancelled_in = "refine"
+                warnings.append(f"cancelled while carrying the result to the fine output mesh (edge {fine_edge} m): "
+                                f"the optimized mesh (edge {opts.edge_length} m) is returned, in the optimizer's "
+                                f"(anchored) drape")
     output_planes = opts.contact_normals   # the contact plane the output drape is an equilibrium of
-    if g_out is g:   # the optimized mesh is the output
-        x_assets, move, planes, face_move = _assets_drape(g, co, material, body_final, model.faces, opts, ctl.token)
-        if x_assets is None:
-            warnings.append("the recovered drape did not re-solve without the optimizer's anchor springs; the "
-                            "optimizer's (anchored) drape is returned")
+    if g_out is g and not cancelled_in:   # the optimized mesh is the output
+        try:
+            x_assets, move, planes, face_move = _assets_drape(g, co, material, body_final, model.faces, opts,
+                                                              ctl.token)
+        except _core.Cancelled:
+            cancelled_in = "output drape"
+            warnings.append("cancelled while re-solving the recovered drape without the optimizer's anchor springs: "
+                            "the optimizer's (anchored) drape is returned")
         else:
-            x_out, output_planes = x_assets, planes
-            output_drape["self_anchor_move_m"] = move   # the last re-anchoring round's largest move
-            output_drape["contact_normals"] = planes
-            if face_move is not None:   # re-anchored with valley contacts where face planes alternated
-                output_drape["face_plane_move_m"] = face_move
-            if move > SELF_ANCHOR_TOL:
-                warnings.append(f"the recovered drape still moved {1e3 * move:.2f} mm in its last re-anchoring "
-                                f"(Cloth.self_anchor, friction {opts.output_friction}, contact plane {planes}): reloaded, the assets may "
-                                f"settle by about that much")
+            if x_assets is None:
+                warnings.append("the recovered drape did not re-solve without the optimizer's anchor springs; the "
+                                "optimizer's (anchored) drape is returned")
+            else:
+                x_out, output_planes = x_assets, planes
+                output_drape["self_anchor_move_m"] = move   # the last re-anchoring round's largest move
+                output_drape["contact_normals"] = planes
+                if face_move is not None:   # re-anchored with valley contacts where face planes alternated
+                    output_drape["face_plane_move_m"] = face_move
+                if move > SELF_ANCHOR_TOL:
+                    warnings.append(f"the recovered drape still moved {1e3 * move:.2f} mm in its last re-anchoring "
+                                    f"(Cloth.self_anchor, friction {opts.output_friction}, contact plane {planes}): reloaded, the assets may "
+                                    f"settle by about that much")
 
     # result ------------------------------------------------------------------------------------
-    ctl.report("metrics")
+    if cancelled_in:
+        output_drape["criterion"] = "anchored"   # the optimizer's drape, as the warnings say
+    ctl.report("metrics", check=False)   # a cancel from now on keeps the result (RecoveryCancelled)
     g_final = Garment(rest_out, g_out.faces, x_out, g_out.seams, g_out.panel, g_out.panels, g_out.boundaries,
                       name=g_out.name)
     q = mesh_quality(x_out, g_out.faces)
     metrics = {
         "chamfer_initial_cm": chamfer_initial,
-        "chamfer_final_cm": cm * chamfer_meshes(x_out, g_out.faces, Vg_scan, Fg_scan, samples=nsamp,
-                                                cancel=ctl.token),
+        "chamfer_final_cm": cm * chamfer_meshes(x_out, g_out.faces, Vg_scan, Fg_scan, samples=nsamp),
         "mesh_quality_min": q.min, "mesh_quality_avg": q.mean,
         "seam_length_mismatch_max_pct": seam_mismatch_pct(g_out, rest_out),
         "pattern_area_m2": g_final.total_area(), "template_area_m2": g_template.total_area(),
@@ -548,10 +582,10 @@ def _recover(scan, opts: RecoverOptions, ctl: "_Control", body_model, t0: float)
         "bending_range": co.bending_range,
         "optimized_vertices": int(len(g.rest)), "output_vertices": int(len(rest_out)),
         "output_drape": output_drape,
+        "cancelled_during": cancelled_in,   # None: the recovery ran to its end
     }
     if g_out is not g:   # the fine output: also the Chamfer of the optimized (coarse) drape it came from
-        metrics["chamfer_optimized_cm"] = cm * chamfer_meshes(co.x, g.faces, Vg_scan, Fg_scan, samples=nsamp,
-                                                              cancel=ctl.token)
+        metrics["chamfer_optimized_cm"] = cm * chamfer_meshes(co.x, g.faces, Vg_scan, Fg_scan, samples=nsamp)
     optimized = metrics.get("chamfer_optimized_cm", metrics["chamfer_final_cm"])   # on the optimization's mesh
     if optimized > 1.01 * chamfer_initial:   # φ ranked a worse fit lower (beyond re-anchoring's 1%): say so
         warnings.append(f"the recovered garment is farther from the scan (Chamfer {optimized:.3f} cm) than the "
@@ -602,7 +636,9 @@ def _recover(scan, opts: RecoverOptions, ctl: "_Control", body_model, t0: float)
     result.body_params = body_out
     result.warnings = warnings
     result.scan_mesh = (scan_vertices, data.faces)
+    if cancelled_in or ctl.cancelled:
+        raise RecoveryCancelled(f"cancelled during {cancelled_in or 'metrics'}", result)
     return result
 
 
-__all__ = ["recover", "scan_for_recovery", "RecoveryError", "select_template", "sleeve_reach", "STAGES", "ScanError"]
+__all__ = ["recover", "scan_for_recovery", "RecoveryError", "RecoveryCancelled", "select_template", "sleeve_reach", "STAGES", "ScanError"]
