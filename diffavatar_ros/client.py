@@ -253,6 +253,14 @@ def send(paths, out_dir, *, garment: str = "", units: str = "m", up_axis: str = 
                 write_result(convert.assets_to_result(res, client.loss_history(job_id)), out)
                 print(f"{job_id}: ok, Chamfer {res.chamfer_initial_cm:.3g} -> {res.chamfer_final_cm:.3g} cm, "
                       f"{res.iterations} iterations, {res.wall_s:.1f} s -> {out}", file=stream, flush=True)
+            elif res.error_code == AvatarAssets.ERROR_CANCELLED and len(res.garment_draped.faces):
+                # cancelled once its optimization had begun: the assets are what it had produced
+                kept = convert.assets_to_result(res, client.loss_history(job_id))
+                kept.metrics["stopped"] = "cancelled"
+                write_result(kept, out)
+                print(f"{job_id}: CANCELLED: {res.error_msg}; Chamfer {res.chamfer_initial_cm:.3g} -> "
+                      f"{res.chamfer_final_cm:.3g} cm -> {out}", file=stream, flush=True)
+                failed += 1
             else:
                 name = next((k[len("ERROR_"):] for k in dir(AvatarAssets)
                              if k.startswith("ERROR_") and getattr(AvatarAssets, k) == res.error_code), "UNKNOWN")

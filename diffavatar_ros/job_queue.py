@@ -58,7 +58,8 @@ class Job:
 
 class JobQueue:
     """run(job) -> result is called on the worker thread; it may raise JobError, or
-    diffavatar_core.Cancelled when job.cancel was set; any other exception becomes an
+    diffavatar_core.Cancelled when job.cancel was set (one carrying `.result` — what the run
+    produced until then — leaves it in job.result); any other exception becomes an
     INTERNAL error (with the traceback in the log) and the queue keeps going.
     on_finished(job) is called on the worker thread after every job (also rejected/cancelled)."""
 
@@ -171,8 +172,10 @@ class JobQueue:
             try:
                 job.result = self._run(job)
                 job.state = JobState.SUCCEEDED
-            except dc.Cancelled:
-                job.state, job.error = JobState.CANCELLED, JobError("CANCELLED", "cancelled while running")
+            except dc.Cancelled as exc:   # what it produced until then, when the runner kept it (`.result`)
+                why = f"cancelled while running ({exc})" if str(exc) else "cancelled while running"
+                job.state, job.error = JobState.CANCELLED, JobError("CANCELLED", why)
+                job.result = getattr(exc, "result", None)
             except JobError as err:
                 job.state, job.error = JobState.FAILED, err
             except Exception as exc:  # a bug must not take the service down

@@ -341,7 +341,7 @@ class DiffAvatarNode(Node):
 
     def _on_finished(self, job: Job):
         out = pathlib.Path(job.payload["output_dir"]) / _safe_dir_name(job.job_id)
-        if job.state is JobState.SUCCEEDED:
+        if job.result is not None and job.state in (JobState.SUCCEEDED, JobState.CANCELLED):
             try:
                 from diffavatar_core.pipeline.output import write_result
                 write_result(job.result, out, scan=getattr(job.result, "scan_mesh", None))
@@ -350,6 +350,10 @@ class DiffAvatarNode(Node):
                 self._queue.last_error = f"{job.job_id}: could not write {out}: {exc}"
                 self.get_logger().error(self._queue.last_error)
             msg = convert.result_to_assets(job.job_id, job.result)
+            if job.state is JobState.CANCELLED:   # once its optimization had begun: what it produced is kept
+                msg.error_code = convert.error_code(job.error.code)
+                msg.error_msg = (f"{job.error.message}: the assets are what it had produced (warnings; "
+                                 f"result.json metrics.stopped, metrics.cancelled_during)")
         else:
             msg = convert.error_assets(job.job_id, job.error.code, job.error.message)
             other = self._queue.get(job.job_id)

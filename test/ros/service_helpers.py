@@ -50,10 +50,11 @@ class SphereFitRunner:
     make each iteration's core call longer (responsiveness and cancel tests). Records the scans
     it received (`scans`) and the iterations it started (`started` event)."""
 
-    def __init__(self, repeat: int = 1, lr: float = 0.5):
-        self.repeat, self.lr = repeat, lr
+    def __init__(self, repeat: int = 1, lr: float = 0.5, keep_on_cancel: bool = False):
+        self.repeat, self.lr, self.keep_on_cancel = repeat, lr, keep_on_cancel
         self.scans = []
         self.started = threading.Event()
+        self.done = 0   # iterations finished by the current job
 
     def __call__(self, scan, options, rc):
         self.scans.append(scan)
@@ -64,14 +65,29 @@ class SphereFitRunner:
         query = np.tile(pts, (self.repeat, 1)) if self.repeat > 1 else pts
         r, history = 0.2, []
         t0 = time.monotonic()
+        self.done = 0
         for it in range(1, n + 1):
-            rc.check("optimize")
-            d = dc.surface_distances(query, c + r * SPHERE.vertices, SPHERE.faces, cancel=rc.cancel)[: len(pts)]
+            try:
+                rc.check("optimize")
+                d = dc.surface_distances(query, c + r * SPHERE.vertices, SPHERE.faces, cancel=rc.cancel)[: len(pts)]
+            except dc.Cancelled:
+                if not (self.keep_on_cancel and history):
+                    raise
+                # as the recovery does once its optimization has begun: what it produced goes along
+                from diffavatar_core.pipeline import RecoveryCancelled
+                raise RecoveryCancelled("cancelled during optimize", self._result(scan, c, r, history, t0)) from None
             signed = np.linalg.norm(pts - c, axis=1) - r  # >0 outside: growing r reduces it
             loss = float(np.mean(d ** 2))
             r += self.lr * float(np.mean(np.sign(signed) * d))
             history.append({"iteration": it, "value": loss, "terms": {"feature": loss}})
+            self.done = it
             rc.report("optimize", it, n, loss, {"feature": loss})
+        return self._result(scan, c, r, history, t0)
+
+    @staticmethod
+    def _result(scan, c, r, history, t0) -> RecoveryResult:
+        """The sphere of radius r (m) about c as a RecoveryResult after len(history) iterations."""
+        n = len(history)
         V = c + r * SPHERE.vertices
         F = SPHERE.faces.astype(np.int64)
         uv = SPHERE.vertices[:, [0, 2]] * r

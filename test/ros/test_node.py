@@ -848,3 +848,34 @@ def test_the_default_runner_recovers_the_sample_scan(setup_service, tmp_path):
     np.testing.assert_allclose(got["garment_vertices"], ref.garment_vertices, rtol=0, atol=1e-6)
     np.testing.assert_allclose(got["rest_xy"], ref.pattern.rest_xy, rtol=0, atol=1e-9)
     assert res.chamfer_final_cm == pytest.approx(ref.metrics["chamfer_final_cm"], rel=1e-9)
+
+
+def test_a_job_cancelled_in_its_optimization_answers_with_what_it_produced(setup_service, tmp_path):
+    """A job cancelled once its optimization has begun (the real recovery of the bundled sample,
+    cancelled on the topic after its second step) ends CANCELLED but keeps what it produced: the
+    answer carries the optimization's current iterate as assets, written to disk like a success's
+    (result.json, not error.json), its fit better than the template's."""
+    from diffavatar_core.demo import SAMPLE
+    from diffavatar_core.scan import read_scan_file
+    from diffavatar_ros.node import default_runner
+    raw = read_scan_file(SAMPLE)
+    svc, cli = setup_service(runner=default_runner)
+    cli.send(convert.scan_to_msg(raw.vertices, raw.faces, raw.labels, (), units="cm", job_id="kept", iterations=6))
+    deadline = time.monotonic() + 600
+    while not any(p.stage == "optimize" and p.iteration >= 2 for p in cli.progress_of("kept")):
+        assert time.monotonic() < deadline, [(p.stage, p.iteration) for p in cli.progress_of("kept")]
+        time.sleep(0.05)
+    cli.cancel("kept")
+    res = cli.result_for("kept", timeout=120)
+    assert res.error_code == AvatarAssets.ERROR_CANCELLED, res.error_msg
+    assert res.error_msg.startswith("cancelled while running (cancelled during optimize): the assets are what")
+    assert res.garment_type == "skirt" and res.chamfer_final_cm < res.chamfer_initial_cm
+    assert any(w.startswith("cancelled during the optimization at step ") for w in res.warnings)
+    got = convert.assets_to_arrays(res)
+    assert len(got["garment_vertices"]) > 0 and np.isfinite(got["garment_vertices"]).all()
+    out = pathlib.Path(res.output_dir)
+    summary = json.loads((out / "result.json").read_text())
+    assert not (out / "error.json").exists()
+    assert summary["metrics"]["stopped"] == "cancelled" and summary["metrics"]["cancelled_during"] == "optimize"
+    assert summary["metrics"]["chamfer_final_cm"] == pytest.approx(res.chamfer_final_cm, rel=1e-9)
+    assert svc.node.queue.current is None   # the node goes on

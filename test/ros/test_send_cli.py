@@ -1,12 +1,14 @@
 """`diffavatar send` as a second OS process against the node (real DDS between processes):
 a batch directory with a labelled PLY scan, a garment-only OBJ scan and a bad file; results
-written as the CLI's files, the bad file reported before sending."""
+written as the CLI's files, the bad file reported before sending; a job cancelled mid-optimization
+written with what it produced."""
 import json
 import os
 import pathlib
 import subprocess
 import sys
 import threading
+import time
 
 import numpy as np
 from rclpy.executors import MultiThreadedExecutor
@@ -91,3 +93,49 @@ def test_send_without_a_node_says_so(ros_domain, tmp_path):
     save_mesh(tmp_path / "s.obj", V, F)
     proc = _send(ros_domain, tmp_path / "s.obj", "--garment", "dress", "--wait", 1, "--out", tmp_path / "o")
     assert proc.returncode == 1 and "no /diffavatar_node found" in proc.stdout
+
+
+def test_send_keeps_a_job_cancelled_in_its_optimization(ros_domain, ros_context, tmp_path):
+    """A job cancelled on the node once its optimization has begun answers with what it produced
+    (the runner raises RecoveryCancelled, as the recovery does): `diffavatar send` writes those
+    assets as the node wrote them (the sphere of the iterations done, not of the 1000 asked),
+    reports the job CANCELLED and exits 1."""
+    V, F, L, _ = small_scan()
+    _write_labelled_ply(tmp_path / "s.ply", V, F, L)
+    runner = SphereFitRunner(repeat=400, keep_on_cancel=True)   # ~0.1-0.5 s per iteration
+    node = DiffAvatarNode(runner=runner, context=ros_context,
+                          parameter_overrides=[Parameter("output_dir", value=str(tmp_path / "node_out"))])
+    ex = MultiThreadedExecutor(num_threads=4, context=ros_context)
+    ex.add_node(node)
+    spin = threading.Thread(target=ex.spin, daemon=True)
+    spin.start()
+    out = tmp_path / "client_out"
+    proc = subprocess.Popen([sys.executable, "-m", "diffavatar_core", "send", str(tmp_path / "s.ply"), "--label-names",
+                             "body,tshirt", "--iterations", "1000", "--quiet", "--out", str(out)],
+                            env={**os.environ, "ROS_DOMAIN_ID": str(ros_domain)}, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 90
+        while runner.done < 2:
+            assert time.monotonic() < deadline and proc.poll() is None, proc.poll()
+            time.sleep(0.02)
+        job_id = node.queue.current.job_id
+        assert node.queue.cancel(job_id)
+        stdout, stderr = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+        node.stop_jobs()
+        shutdown_executor(ex, spin)
+        node.destroy_node()
+    assert proc.returncode == 1, stdout + stderr
+    assert f"{job_id}: CANCELLED: cancelled while running (cancelled during optimize): the assets are" in stdout
+    mine, theirs = out / job_id, tmp_path / "node_out" / job_id
+    a, b = json.loads((mine / "result.json").read_text()), json.loads((theirs / "result.json").read_text())
+    assert a["metrics"]["stopped"] == "cancelled" and not (mine / "error.json").exists()
+    assert 2 <= a["iterations"] == b["iterations"] < 1000 and a["pattern"] == b["pattern"]
+    Va, Fa = load_mesh(mine / "garment_draped.obj")
+    Vb, Fb = load_mesh(theirs / "garment_draped.obj")
+    np.testing.assert_allclose(Va, Vb, rtol=1e-6, atol=1e-7)
+    np.testing.assert_array_equal(Fa, Fb)
