@@ -585,7 +585,8 @@ class CoOptObjective:
         self._undo = (self._undo + [self.x_warm])[-keep:]
         self._current_undo = (self._current_undo + [self.current])[-keep:]
         self.x_warm = self.x_last
-        self.current = (_copy_params(self.params_last), np.array(self.x_last))
+        if self.params_last is not None:   # None: a drape set by hand, not evaluated here
+            self.current = (_copy_params(self.params_last), np.array(self.x_last))
 
     def revert(self) -> None:
         """Undoes the last commit() (its iterate was not accepted after all). The warm starts of

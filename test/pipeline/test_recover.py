@@ -800,6 +800,29 @@ def test_revert_undoes_every_commit_of_a_trial(skirt_problem):
         assert np.allclose(obj.x_warm, x0 + 0.001 * k)
 
 
+def test_the_current_iterate_follows_commit_and_revert(skirt_problem):
+    """What a cancelled run returns (co_optimize): `current` is the (parameters, drape) of the last
+    evaluation committed, or of the last mark_current; revert() undoes a commit's, as x_warm's."""
+    model, p, g, cloth, pts, loops = skirt_problem
+    obj = CoOptObjective(cloth, g, pts, loops, RecoverOptions.from_config(samples=200, reevaluations=3),
+                         cage=build_cage(g))
+    start = obj.initial_params()
+    obj.mark_current(start)
+    x0 = np.array(obj.x_warm)
+    for k in range(4):
+        trial = {**start, "handles": start["handles"] + 0.001 * (k + 1)}
+        obj.x_last, obj.params_last = x0 + 0.001 * (k + 1), trial
+        obj.commit()
+        trial["handles"] += 1.0   # the caller's dict changing later does not change what was kept
+    for k in (4, 3, 2, 1):
+        params, x = obj.current
+        np.testing.assert_array_equal(params["handles"], start["handles"] + 0.001 * k)
+        np.testing.assert_array_equal(x, x0 + 0.001 * k)
+        obj.revert()
+    np.testing.assert_array_equal(obj.current[0]["handles"], start["handles"])
+    np.testing.assert_array_equal(obj.current[1], x0)
+
+
 def test_stretch_compliance_gradient_and_result(skirt_problem):
     """stretch: garment — dφ/dlog10 α of the shared [warp, weft, shear] compliances against
     central differences (the adjoint's dφ/dα chained through α ln10 and summed over the panels),
