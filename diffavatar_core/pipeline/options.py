@@ -10,7 +10,7 @@ from dataclasses import dataclass, field, fields, replace
 
 from ..config import load_config
 from ..scan.frame import UP_AXES
-from ..sim.cloth import CONTACT_NORMALS, NEWTON_SOLVERS
+from ..sim.cloth import CONTACT_NORMALS, NEWTON_SOLVERS, SETTLE_DRAG_MAX
 
 PARAMETRIZATIONS = ("cage", "vertices")
 OPTIMIZERS = ("lbfgs", "adam")
@@ -219,6 +219,9 @@ class RecoverOptions:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
                 bad(name, "must be a number >= 0")
+        if self.output_drape_damping > SETTLE_DRAG_MAX:   # Cloth.settle's bound
+            bad("output_drape_damping", f"must lie in [0, {SETTLE_DRAG_MAX:g}] 1/s (a stronger drag can hold the "
+                                        f"output drape in a state the undamped cloth leaves)")
         if self.sobolev_length > SOBOLEV_LENGTH_MAX:
             bad("sobolev_length", f"must lie in [0, {SOBOLEV_LENGTH_MAX:g}] m (0: the Euclidean metric)")
         if 0 < self.boundary_scale < BOUNDARY_SCALE_MIN:

@@ -82,6 +82,12 @@ CONTACT_REDETECTIONS = 3
 # closest triangle's own plane, the tangent plane with the interpolated vertex normal, or face planes
 # with both faces' over a concave body edge in the quasi-static solves (valley; sim/body_collider.hpp).
 CONTACT_NORMALS = ("face", "smooth", "valley")
+# 1/s: Cloth.settle's largest drag. A drag vanishes at rest, but a strong one can stop the cloth in a
+# state the undamped cloth leaves: settled at 60/s, the 4 cm t-shirt of test_settle.py then moved
+# 10.5 mm under the simulator's own 4/s on an AVX2 machine (stop 56; a tolerance shrunk as 1/drag
+# did not help: a fold was held, not creeping), where 20/s — the recovery's output drape — stayed
+# within 0.43 mm on the ~10k t-shirts (BENCHMARKS.md stop 47) and within 2 × 0.5 mm here.
+SETTLE_DRAG_MAX = 20.0
 # Newton's LDLᵀ (XpbdSolver.supernodal_newton): Eigen's SimplicialLDLT, or the supernodal one of
 # linalg/supernodal_ldlt.hpp (the same solutions up to round-off; bench/newton.py)
 NEWTON_SOLVERS = ("simplicial", "supernodal")
@@ -359,7 +365,8 @@ class Cloth:
         Coulomb μ of the cloth on the body (as in step). damping (1/s): v ← v·exp(−damping·dt) per
         step, a drag that vanishes at rest, so the still state is an undamped one too (the check
         above is on positions, not speeds); a stronger drag stops the carried cloth's swinging and
-        the jitter of its unconverged sweeps sooner (recovery: output_drape_damping)."""
+        the jitter of its unconverged sweeps sooner (recovery: output_drape_damping); at most
+        SETTLE_DRAG_MAX (20/s): a stronger one can hold the cloth where the undamped one moves on."""
         n = _validate.positive_int("max_steps", max_steps)
         w = _validate.positive_int("window_steps", window_steps)
         c = _validate.positive_int("check_steps", check_steps)
@@ -367,6 +374,10 @@ class Cloth:
             raise ValueError(f"check_steps: expected a divisor of window_steps ({w}), got {c}")
         if not (np.isfinite(displacement_tol) and displacement_tol > 0):
             raise ValueError(f"displacement_tol: expected a distance > 0 m, got {displacement_tol}")
+        if not damping <= SETTLE_DRAG_MAX:   # NaN too; < 0 is refused by the steps
+            raise ValueError(f"damping: expected at most {SETTLE_DRAG_MAX:g} 1/s for a settle, got {damping}: a "
+                             f"stronger drag can hold the cloth in a state the undamped cloth leaves (a fold it "
+                             f"would release), which the still window cannot tell")
         t0 = time.perf_counter()
         steps, moved, settled, message = 0, float("inf"), False, ""
         kept = [(0, np.array(self.state.x))]   # (step, positions) at the checks of the last window

@@ -35,6 +35,7 @@ ZERO_STEPS = {"handles": 0.0, "log10_bending": 0.0, "log10_stretch": 0.0, "shape
     ({"step_sizes": {"shape": 0.0}}, r"step_sizes\.shape must be positive when optimize_body is true"),
     ({"step_sizes": {"pose": 0.0}}, r"step_sizes\.pose must be positive when optimize_body is true"),
     ({"sobolev_length": 1e12}, r"sobolev_length must lie in \[0, 10\] m"),
+    ({"output_drape_damping": 60.0}, r"output_drape_damping must lie in \[0, 20\] 1/s"),
     ({"sobolev_length": 10.5}, r"sobolev_length must lie in \[0, 10\] m"),
     ({"boundary_scale": 1e-300}, r"boundary_scale must be 0 \(off\) or at least 0\.0001 m"),
     ({"bend_stiffness": 1000.0}, r"bend_stiffness must be at most 0\.01 N·m"),
@@ -70,6 +71,7 @@ def test_a_bad_option_is_refused_by_name_when_the_options_are_made(overrides, me
     {"step_sizes": {"log10_stretch": 0.0}},                   # stretch fixed: not moved
     {"measurement_fit_iterations": 0, "step_sizes": {"measurements": 0.0}},
     {"sobolev_length": 0.0}, {"sobolev_length": 10.0}, {"sobolev_length": 3},
+    {"output_drape_damping": 0.0}, {"output_drape_damping": 20.0},
     {"boundary_scale": 0.0}, {"boundary_scale": 1e-4}, {"boundary_scale": 0.01},
     {"bend_stiffness": 1e-2}, {"bend_stiffness": 1e-30}, {"residual_tol": 1e-8}, {"residual_tol": 0.5},
     {"garment_type": "skirt"}, {"label": "skirt"}, {"label": 3}, {"job_id": "j1"},
