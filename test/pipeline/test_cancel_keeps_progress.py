@@ -5,12 +5,7 @@ The kept iterate is the one its last loss-history entry was evaluated on: the se
 terms (rest pattern only) and the boundary term (the drape) recomputed from the returned pattern
 and drape equal the entry's."""
 import json
-import os
-import signal
-import subprocess
-import sys
 import threading
-import time
 
 import numpy as np
 import pytest
@@ -22,8 +17,8 @@ from diffavatar_core.pipeline import RecoverOptions, RecoveryCancelled, recover
 from diffavatar_core.pipeline.recovery import scan_for_recovery
 
 from bundled_sample import SAMPLE
+from interrupted_recovery import interrupt_recovery
 
-ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 STEP = 3   # the optimization step (as progress counts them) at which the cancel comes
 
 
@@ -83,40 +78,20 @@ def test_a_cancel_before_the_optimization_keeps_nothing():
     assert not isinstance(err.value, RecoveryCancelled)
 
 
+def _optimize_step(line: str) -> int:
+    """The step of a progress line '[  t s] optimize   [###---] k/N ...'; -1 for any other line."""
+    parts = line.split("] optimize")
+    return int(parts[1].split("]")[1].split("/")[0]) if len(parts) > 1 and "/" in parts[1] else -1
+
+
 def test_ctrl_c_in_the_optimization_writes_what_it_produced_and_exits_130(tmp_path):
     out = tmp_path / "out"
-    p = subprocess.Popen([sys.executable, "-m", "diffavatar_core", "recover", str(SAMPLE), "--units", "cm",
-                          "--iterations", "6", "--out", str(out)], cwd=ROOT, stdout=subprocess.PIPE,
-                         stderr=subprocess.PIPE, text=True,
-                         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
-    lines, reached = [], threading.Event()
-
-    def read():   # progress lines (no tty: one per report): '... optimize   [###---] 2/N ...'
-        for line in p.stderr:
-            lines.append(line)
-            parts = line.split("] optimize")
-            if len(parts) > 1 and "/" in parts[1] and int(parts[1].split("]")[1].split("/")[0]) >= 2:
-                reached.set()
-    reader = threading.Thread(target=read, daemon=True)
-    reader.start()
-    try:
-        assert reached.wait(300), "".join(lines)
-        t0 = time.perf_counter()
-        p.send_signal(signal.SIGINT)
-        stdout = p.stdout.read()
-        rc = p.wait(timeout=60)
-        waited = time.perf_counter() - t0
-    finally:
-        if p.poll() is None:
-            p.kill()
-            p.wait()
-    reader.join(5)
-    err = "".join(lines)
-    assert rc == 130, err
-    assert "Traceback" not in err and "KeyboardInterrupt" not in err, err
-    messages = [line for line in err.splitlines() if not line.startswith("[")]
-    assert messages == [f"diffavatar: cancelled during optimize; what it had produced is in {out}/ (result.json: "
-                        f"metrics.stopped, metrics.cancelled_during, warnings)"], err
+    r = interrupt_recovery(out, 6, lambda line: _optimize_step(line) >= 2, reach_s=300, end_s=60)
+    assert r.rc == 130, r.stderr
+    assert "Traceback" not in r.stderr and "KeyboardInterrupt" not in r.stderr, r.stderr
+    assert r.messages == [f"diffavatar: cancelled during optimize; what it had produced is in {out}/ (result.json: "
+                          f"metrics.stopped, metrics.cancelled_during, warnings)"], r.stderr
+    stdout, waited = r.stdout, r.waited
     summary = json.loads(stdout[:stdout.rindex("}") + 1])
     written = json.loads((out / "result.json").read_text())
     assert written["metrics"]["stopped"] == summary["stopped"] == "cancelled"

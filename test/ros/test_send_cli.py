@@ -2,6 +2,7 @@
 a batch directory with a labelled PLY scan, a garment-only OBJ scan and a bad file; results
 written as the CLI's files, the bad file reported before sending; a job cancelled mid-optimization
 written with what it produced."""
+import contextlib
 import json
 import os
 import pathlib
@@ -30,6 +31,23 @@ def _write_labelled_ply(path, V, F, labels):
             fh.write(f"3 {a} {b} {c}\n")
 
 
+@contextlib.contextmanager
+def _node(ros_context, runner, output_dir):
+    """The node with `runner`, spun in a thread, writing to output_dir; stopped afterwards."""
+    node = DiffAvatarNode(runner=runner, context=ros_context,
+                          parameter_overrides=[Parameter("output_dir", value=str(output_dir))])
+    ex = MultiThreadedExecutor(num_threads=4, context=ros_context)
+    ex.add_node(node)
+    spin = threading.Thread(target=ex.spin, daemon=True)
+    spin.start()
+    try:
+        yield node
+    finally:
+        node.stop_jobs()
+        shutdown_executor(ex, spin)
+        node.destroy_node()
+
+
 def _send(domain, *args):
     env = {**os.environ, "ROS_DOMAIN_ID": str(domain)}
     return subprocess.run([sys.executable, "-m", "diffavatar_core", "send", *map(str, args)], env=env,
@@ -43,13 +61,7 @@ def test_send_batch_directory_and_action(ros_domain, ros_context, tmp_path):
     _write_labelled_ply(batch / "a_person.ply", V, F, L)
     save_mesh(batch / "b_bad.obj", V * 1000, F)  # millimetres sent as metres
     runner = SphereFitRunner()
-    node = DiffAvatarNode(runner=runner, context=ros_context,
-                          parameter_overrides=[Parameter("output_dir", value=str(tmp_path / "node_out"))])
-    ex = MultiThreadedExecutor(num_threads=4, context=ros_context)
-    ex.add_node(node)
-    spin = threading.Thread(target=ex.spin, daemon=True)
-    spin.start()
-    try:
+    with _node(ros_context, runner, tmp_path / "node_out"):
         out = tmp_path / "client_out"
         proc = _send(ros_domain, batch, "--label-names", "body,tshirt", "--iterations", 3, "--out", out)
         assert proc.returncode == 1, proc.stdout + proc.stderr  # one bad file
@@ -82,10 +94,6 @@ def test_send_batch_directory_and_action(ros_domain, ros_context, tmp_path):
         assert proc.returncode == 0, proc.stdout + proc.stderr
         assert "garment-" in proc.stdout and ": ok" in proc.stdout and proc.stderr.count("optimize") == 0
         np.testing.assert_allclose(runner.scans[-1].vertices, V, atol=1e-6)  # converted to m, Y up
-    finally:
-        node.stop_jobs()
-        shutdown_executor(ex, spin)
-        node.destroy_node()
 
 
 def test_send_without_a_node_says_so(ros_domain, tmp_path):
@@ -103,32 +111,24 @@ def test_send_keeps_a_job_cancelled_in_its_optimization(ros_domain, ros_context,
     V, F, L, _ = small_scan()
     _write_labelled_ply(tmp_path / "s.ply", V, F, L)
     runner = SphereFitRunner(repeat=400, keep_on_cancel=True)   # ~0.1-0.5 s per iteration
-    node = DiffAvatarNode(runner=runner, context=ros_context,
-                          parameter_overrides=[Parameter("output_dir", value=str(tmp_path / "node_out"))])
-    ex = MultiThreadedExecutor(num_threads=4, context=ros_context)
-    ex.add_node(node)
-    spin = threading.Thread(target=ex.spin, daemon=True)
-    spin.start()
     out = tmp_path / "client_out"
-    proc = subprocess.Popen([sys.executable, "-m", "diffavatar_core", "send", str(tmp_path / "s.ply"), "--label-names",
-                             "body,tshirt", "--iterations", "1000", "--quiet", "--out", str(out)],
-                            env={**os.environ, "ROS_DOMAIN_ID": str(ros_domain)}, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True)
-    try:
-        deadline = time.monotonic() + 90
-        while runner.done < 2:
-            assert time.monotonic() < deadline and proc.poll() is None, proc.poll()
-            time.sleep(0.02)
-        job_id = node.queue.current.job_id
-        assert node.queue.cancel(job_id)
-        stdout, stderr = proc.communicate(timeout=60)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.communicate()
-        node.stop_jobs()
-        shutdown_executor(ex, spin)
-        node.destroy_node()
+    with _node(ros_context, runner, tmp_path / "node_out") as node:
+        proc = subprocess.Popen([sys.executable, "-m", "diffavatar_core", "send", str(tmp_path / "s.ply"),
+                                 "--label-names", "body,tshirt", "--iterations", "1000", "--quiet", "--out", str(out)],
+                                env={**os.environ, "ROS_DOMAIN_ID": str(ros_domain)}, stdout=subprocess.PIPE,
+                                stderr=subprocess.PIPE, text=True)
+        try:
+            deadline = time.monotonic() + 90
+            while runner.done < 2:
+                assert time.monotonic() < deadline and proc.poll() is None, proc.poll()
+                time.sleep(0.02)
+            job_id = node.queue.current.job_id
+            assert node.queue.cancel(job_id)
+            stdout, stderr = proc.communicate(timeout=60)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.communicate()
     assert proc.returncode == 1, stdout + stderr
     assert f"{job_id}: CANCELLED: cancelled while running (cancelled during optimize): the assets are" in stdout
     mine, theirs = out / job_id, tmp_path / "node_out" / job_id
