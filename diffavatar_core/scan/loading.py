@@ -14,7 +14,7 @@ import numpy as np
 
 from .errors import (EmptyScanError, FaceIndexError, LabelError, NonFiniteError,
                      ScanFormatError, VertexArrayError)
-from .ply_reader import PlyMesh, ply_element, read_ply
+from .ply_reader import PlyMesh, fan_polygons, index_lists, ply_element, read_ply
 
 #: PLY vertex properties read as the per-vertex label, first match wins (any letter case).
 LABEL_PROPERTIES = ("label", "labels")
@@ -340,21 +340,14 @@ def _ply_face_labels(elements: dict, source: str, F: np.ndarray, has_vertex_labe
         raise LabelError(f"{source}: the per-face property {prop!r} is not one value per face ({exc})") from None
     if len(FL) == len(F):
         return FL, F
-    # polygons: fan them in file order, each triangle with its polygon's label
-    idx = raw[by_lower.get("vertex_indices", by_lower.get("vertex_index"))] \
-        if ("vertex_indices" in by_lower or "vertex_index" in by_lower) else None
-    if idx is None or len(idx) != len(FL):
+    # polygons (read_ply has refused any of fewer than 3 vertices): fanned in file order as
+    # read_ply fans them when trimesh cannot, each triangle with its polygon's label
+    polys = index_lists(raw, by_lower)
+    if polys is None or len(polys[0]) != len(FL):
         raise LabelError(f"{source}: {len(FL)} per-face labels for {len(F)} triangles, and the face element's "
                          f"polygons cannot be matched to them")
-    tris, tl = [], []
-    for k, poly in enumerate(idx):
-        poly = np.asarray(poly, np.int64).reshape(-1)
-        if len(poly) < 3:
-            raise FaceIndexError(f"{source}: face {k} has {len(poly)} vertices (a face needs 3 or more)")
-        j = np.arange(1, len(poly) - 1)
-        tris.append(np.stack([np.full(len(j), poly[0]), poly[j], poly[j + 1]], 1))
-        tl.append(np.full(len(j), k))
-    return FL[np.concatenate(tl)], np.concatenate(tris)
+    lengths, flat = polys
+    return np.repeat(FL, lengths - 2), fan_polygons(lengths, flat)
 
 
 def _with_face_labels(raw: RawScan, face_labels: np.ndarray, label_map) -> tuple[RawScan, str]:

@@ -51,7 +51,7 @@ _PLY_TYPES = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short":
 INDEX_PROPERTIES = ("vertex_indices", "vertex_index")
 
 
-def _index_lists(raw, by_lower: dict) -> tuple[np.ndarray, np.ndarray] | None:
+def index_lists(raw, by_lower: dict) -> tuple[np.ndarray, np.ndarray] | None:
     """(lengths (N,), the indices of all lists concatenated) of an element's vertex_indices list
     property (as trimesh or _read_binary_ply stored it: a 2-D array when all lists have one
     length, an object array of lists otherwise, a structured ('f0' count, 'f1' values) array),
@@ -98,7 +98,7 @@ def strips_to_triangles(flat: np.ndarray, lengths: np.ndarray, restart: int = -1
     return T[keep], strip[k][keep]
 
 
-def _fan(lengths: np.ndarray, flat: np.ndarray) -> np.ndarray:
+def fan_polygons(lengths: np.ndarray, flat: np.ndarray) -> np.ndarray:
     """Polygons (lengths ≥ 3, indices concatenated) fanned from their first vertex in file order:
     (p0, p1, p2), (p0, p2, p3), ... — as the OBJ reader does."""
     first = np.cumsum(lengths) - lengths
@@ -230,7 +230,7 @@ def read_ply(path: str | pathlib.Path) -> PlyMesh:
     _check_ply_counts(p, len(V), None)   # misaligned data first: its numbers would make odd faces
     # faces of fewer than 3 vertices: trimesh drops them (mixed) or reads no triangle at all
     fraw, fby = ply_element(elements, "face")
-    polys = _index_lists(fraw, fby) if fraw is not None else None
+    polys = index_lists(fraw, fby) if fraw is not None else None
     if polys is not None:
         lengths, flat = polys
         short = lengths < 3
@@ -243,11 +243,11 @@ def read_ply(path: str | pathlib.Path) -> PlyMesh:
                                  f"face {i} = {first}): a face needs 3 or more — edges or points stored as faces? "
                                  f"remove them (or store edges as an 'edge' element)")
         if m is None:
-            Ff = _fan(lengths, flat)
+            Ff = fan_polygons(lengths, flat)
     T, strip_of = np.zeros((0, 3), np.int64), np.zeros(0, np.int64)
     if strips:
         sraw, sby = ply_element(elements, "tristrips")
-        lists = _index_lists(sraw, sby) if sraw is not None else None
+        lists = index_lists(sraw, sby) if sraw is not None else None
         if lists is None:
             raise ScanFormatError(f"{p}: the tristrips element has no 'vertex_indices' list property")
         lengths, flat = lists
