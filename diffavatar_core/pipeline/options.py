@@ -349,8 +349,11 @@ class RecoverOptions:
 
     @classmethod
     def coerce(cls, options) -> "RecoverOptions":
-        """RecoverOptions as given, or from a dict of overrides (the node's job options:
-        job_id, iterations (0 = configured), garment_type, units, up_axis)."""
+        """RecoverOptions as given, or from a dict of overrides of the configured defaults (also
+        the node's job options: job_id, iterations, garment_type, units, up_axis; an empty string
+        for garment_type, units, up, template or label is "not given"). iterations 0 is taken as
+        given — drape the template only — as everywhere else (config, CLI); the node maps a
+        scan's 0 to its default_iterations parameter before it gets here."""
         if isinstance(options, cls):
             return options
         if options is None:
@@ -360,8 +363,6 @@ class RecoverOptions:
         d = dict(options)
         if "up_axis" in d:
             d["up"] = d.pop("up_axis")
-        if not d.get("iterations"):
-            d.pop("iterations", None)
         for k in ("garment_type", "units", "up", "template", "label"):
             if k in d and d[k] in ("", None):
                 d.pop(k)

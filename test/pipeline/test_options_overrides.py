@@ -110,7 +110,6 @@ def test_a_recovery_with_nested_overrides_and_no_guided_drapes_falls_back_to_val
             r = dataclasses.replace(r, converged=False, message="injected")
         return r, steps
     monkeypatch.setattr(rec, "_initial_drape", face_fails)
-    # (a dict's iterations 0 means "the configured 30": the options are made from the same dict here)
     opts = RecoverOptions.from_config(**FAST, guided_stiffness=0, weights={"interior": 10.0},
                                       step_sizes={"handles": 0.002})
     r = recover(SAMPLE, opts)

@@ -20,6 +20,13 @@ from diffavatar_core.scan import ImplausibleSizeError, LabelError, NoGarmentErro
 from diffavatar_core.sim.material import ClothMaterial
 
 from branch_difference import BRANCH_TOL, differences_on_one_branch
+from bundled_sample import QUICK
+from sample_recovery import recovered_sample
+
+# The recovery without its bending search after the measurement fit and without the bending's
+# range (about 35 of the sample's 60 s at iterations 2): for the fault-injection tests whose
+# property lies in another stage.
+NO_BENDING_SEARCH = dict(measurement_fit_bending=[], bending_range_offsets=[])
 
 
 @pytest.mark.parametrize("problem,boundary_scale,interior_to", [("skirt_problem", 0.0, "points"),
@@ -154,11 +161,11 @@ def test_h1_metric_step_descends(skirt_problem):
 
 @pytest.fixture(scope="module")
 def recovered(tmp_path_factory):
-    """The bundled sample recovered with 6 iterations, written to a result directory."""
-    stages = []
-    r = recover(SAMPLE, {"units": "cm", "iterations": 6}, progress=lambda s, i, n, l, t: stages.append(s))
+    """The bundled sample recovered with 6 iterations (sample_recovery.py: made once per session),
+    written to a result directory."""
+    r, stages = recovered_sample(6)
     out = write_result(r, tmp_path_factory.mktemp("recovered") / "res", scan=r.scan_mesh)
-    return r, out, stages
+    return r, out, list(stages)
 
 
 def test_end_to_end_recovery_moves_toward_the_ground_truth(recovered):
@@ -297,8 +304,13 @@ def test_animate_a_result_directory(recovered, tmp_path):
 
 
 def test_options_from_node_dict_and_config():
-    o = RecoverOptions.coerce({"job_id": "j1", "iterations": 0, "garment_type": "", "units": "cm", "up_axis": "z"})
-    assert (o.iterations, o.units, o.up, o.garment_type, o.job_id) == (30, "cm", "z", None, "j1")
+    o = RecoverOptions.coerce({"job_id": "j1", "iterations": 7, "garment_type": "", "units": "cm", "up_axis": "z"})
+    assert (o.iterations, o.units, o.up, o.garment_type, o.job_id) == (7, "cm", "z", None, "j1")
+    # iterations 0 is "drape the template only" in a dict too, as in the config and the CLI (it
+    # was read as "the configured 30", so tests whose options said 0 ran 30 iterations); the
+    # node maps a scan's 0 to its default_iterations before the dict is made
+    assert RecoverOptions.coerce({"iterations": 0}).iterations == 0
+    assert RecoverOptions.coerce({}).iterations == RecoverOptions.from_config().iterations == 30
     with pytest.raises(ValueError, match="parametrization"):
         RecoverOptions.from_config(parametrization="mesh")
     with pytest.raises(ValueError, match="newton_solver.*simplicial.*supernodal"):
@@ -395,7 +407,7 @@ def test_a_result_farther_from_the_scan_than_the_template_says_so(recovered, mon
         calls.append(real(*args, **kwargs))
         return calls[0] + 0.01 if len(calls) == 2 else calls[-1]
     monkeypatch.setattr(rec, "chamfer_meshes", final_worse)
-    r = recover(SAMPLE, {"units": "cm", "iterations": 2, "template_sizing": False})   # (sizing measures drapes too)
+    r = recover(SAMPLE, QUICK)   # (no template sizing: it measures drapes too)
     assert r.metrics["chamfer_final_cm"] > r.metrics["chamfer_initial_cm"]
     msg = f"farther from the scan (Chamfer {r.metrics['chamfer_final_cm']:.3f} cm) than the template's initial " \
           f"drape ({r.metrics['chamfer_initial_cm']:.3f} cm)"
@@ -421,7 +433,7 @@ def test_an_initial_drape_that_face_planes_do_not_converge_continues_with_valley
             r = dataclasses.replace(r, converged=False, message="injected")
         return r, steps
     monkeypatch.setattr(rec, "_initial_drape", face_fails)
-    r = recover(SAMPLE, {"units": "cm", "iterations": 2})
+    r = recover(SAMPLE, {"units": "cm", "iterations": 2, **NO_BENDING_SEARCH})
     assert tried[:2] == [False, True] and all(tried[2:])   # then the template sizing's drapes, with valley too
     assert any("did not converge with face contact planes (injected" in w for w in r.warnings), r.warnings
     assert r.material.contact_normals == "valley" == r.metrics["output_drape"]["contact_normals"]
@@ -439,7 +451,7 @@ def test_an_initial_drape_that_face_planes_do_not_converge_continues_with_valley
         return dataclasses.replace(r, converged=False, message="injected"), steps
     monkeypatch.setattr(rec, "_initial_drape", both_fail)
     with pytest.raises(RecoveryError, match="initial drape of template 'skirt'.*injected.*with valley contacts too: injected"):
-        recover(SAMPLE, {"units": "cm", "iterations": 2})
+        recover(SAMPLE, {"units": "cm", "iterations": 2, **NO_BENDING_SEARCH})
 
 
 def test_a_sized_template_that_does_not_drape_leaves_the_selected_one(monkeypatch):
@@ -455,7 +467,7 @@ def test_a_sized_template_that_does_not_drape_leaves_the_selected_one(monkeypatc
         calls.append(1)
         return (r if len(calls) == 1 else dataclasses.replace(r, converged=False, message="injected")), steps
     monkeypatch.setattr(rec, "_initial_drape", later_fail)
-    r = recover(SAMPLE, {"units": "cm", "iterations": 1})
+    r = recover(SAMPLE, {"units": "cm", "iterations": 1, **NO_BENDING_SEARCH})
     sizing, fit = r.metrics["template_sizing"], r.metrics["measurement_fit"]
     assert len(calls) == 2 and not sizing["kept"] and sizing["rounds"][0]["converged"] is False
     assert fit["template_m"] == [sizing["template_m"][k] for k in fit["names"]]

@@ -508,6 +508,20 @@ def test_status_reports_queue_current_job_and_last_error(setup_service, client_c
     cli.result_for("s2")
 
 
+def test_a_scan_asking_for_0_iterations_gets_the_default_iterations_parameter(setup_service):
+    """SegmentedScan.iterations 0 means "the node's default": the job runs default_iterations
+    (set to 3 here) iterations; any other value runs as given. (The Python API takes 0 as given,
+    drape only: the node makes the mapping.)"""
+    runner = SphereFitRunner()
+    svc, cli = setup_service(runner=runner, overrides=[Parameter("default_iterations", value=3)])
+    for job_id, asked, ran in (("zero", 0, 3), ("two", 2, 2)):
+        cli.send(_msg(job_id, iterations=asked))
+        res = cli.result_for(job_id)
+        assert res.error_code == AvatarAssets.ERROR_NONE, res.error_msg
+        assert res.iterations == ran
+        assert [p.iteration for p in cli.progress_of(job_id) if p.stage == "optimize"] == list(range(1, ran + 1))
+
+
 def test_parameters_from_a_params_file_validated_and_read_only(ros_context, tmp_path):
     params = tmp_path / "node.yaml"
     params.write_text("diffavatar_node:\n  ros__parameters:\n    queue_length: 3\n    result_history: 4\n"
@@ -822,17 +836,21 @@ def test_duplicate_job_id_is_refused_and_a_rerun_replaces_the_record(setup_servi
 
 def test_the_default_runner_recovers_the_sample_scan(setup_service, tmp_path):
     """The node with its real job (diffavatar_core.pipeline.recover): the bundled sample scan sent
-    in cm gets a successful result whose fit improved, written to disk like the CLI's."""
+    in cm gets a successful result whose fit improved, written to disk like the CLI's, and its
+    assets are what the core's Python API computes from the file (sample_recovery.py, shared
+    with test_recover)."""
     from diffavatar_core.demo import SAMPLE
     from diffavatar_core.scan import read_scan_file
     from diffavatar_ros.node import default_runner
+    from sample_recovery import recovered_sample
     raw = read_scan_file(SAMPLE)
     svc, cli = setup_service(runner=default_runner)
     cli.send(convert.scan_to_msg(raw.vertices, raw.faces, raw.labels, (), units="cm", job_id="sample",
-                                 iterations=2))
+                                 iterations=6))
     res = cli.result_for("sample", timeout=1200)
     assert res.error_code == AvatarAssets.ERROR_NONE, res.error_msg
-    assert res.garment_type == "skirt" and res.iterations == 2
+    ref = recovered_sample(6)[0]
+    assert res.garment_type == "skirt" and 0 < res.iterations == ref.iterations <= 6
     assert res.chamfer_final_cm < res.chamfer_initial_cm
     stages = [p.stage for p in cli.progress_of("sample")]
     assert stages[0] == "queued" and {"body", "drape", "optimize", "metrics"} <= set(stages)
@@ -842,8 +860,6 @@ def test_the_default_runner_recovers_the_sample_scan(setup_service, tmp_path):
     assert {"pattern.json", "pattern.svg", "garment_draped.obj", "body.obj", "preview.png"} <= {p.name for p in out.iterdir()}
     assert 0 < summary["metrics"]["ssim"] <= 1
     # the assets are what the core's Python API computes for the same input
-    from diffavatar_core.pipeline import recover
-    ref = recover((raw.vertices, raw.faces, raw.labels), {"units": "cm", "iterations": 2})
     got = convert.assets_to_arrays(res)
     np.testing.assert_allclose(got["garment_vertices"], ref.garment_vertices, rtol=0, atol=1e-6)
     np.testing.assert_allclose(got["rest_xy"], ref.pattern.rest_xy, rtol=0, atol=1e-9)
