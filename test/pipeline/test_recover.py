@@ -20,13 +20,8 @@ from diffavatar_core.scan import ImplausibleSizeError, LabelError, NoGarmentErro
 from diffavatar_core.sim.material import ClothMaterial
 
 from branch_difference import BRANCH_TOL, differences_on_one_branch
-from bundled_sample import QUICK
+from bundled_sample import NO_BENDING_SEARCH, QUICK
 from sample_recovery import recovered_sample
-
-# The recovery without its bending search after the measurement fit and without the bending's
-# range (about 35 of the sample's 60 s at iterations 2): for the fault-injection tests whose
-# property lies in another stage.
-NO_BENDING_SEARCH = dict(measurement_fit_bending=[], bending_range_offsets=[])
 
 
 @pytest.mark.parametrize("problem,boundary_scale,interior_to", [("skirt_problem", 0.0, "points"),

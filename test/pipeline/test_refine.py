@@ -10,6 +10,7 @@ from diffavatar_core.pattern.templates import make_template
 from diffavatar_core.pipeline import RecoverOptions, recover
 from diffavatar_core.pipeline.refine import transfer_pattern, transfer_positions
 from edge_strain import mean_edge_strain
+from bundled_sample import NO_BENDING_SEARCH, QUICK
 
 
 @pytest.fixture(scope="module")
@@ -55,7 +56,7 @@ def test_recover_writes_a_finer_settled_mesh():
     same pattern area (to the discretisation of the curved outline). Its stretch is the coarse
     Newton equilibrium's: the same pattern, material and body carry the same weight (unconverged
     XPBD sweeps would leave it softer, stretched further: 1.6× here at 100 sweeps per step)."""
-    opts = {"units": "cm", "iterations": 2, "edge_length": 0.07}
+    opts = {"units": "cm", "iterations": 2, "edge_length": 0.07, **NO_BENDING_SEARCH}
     coarse = recover(SAMPLE, opts)
     fine = recover(SAMPLE, {**opts, "output_edge_length": 0.035})
     assert fine.metrics["output_vertices"] > 2.5 * coarse.metrics["output_vertices"]
@@ -79,8 +80,7 @@ def test_recover_writes_a_finer_settled_mesh():
 def test_an_unsettled_fine_mesh_keeps_the_coarse_result():
     """A fine drape that cannot settle within its step budget is reported and the optimized
     coarse mesh is returned: nothing already produced is lost."""
-    opts = {"units": "cm", "iterations": 1, "edge_length": 0.07}
-    r = recover(SAMPLE, {**opts, "output_edge_length": 0.035, "output_drape_steps": 10})
+    r = recover(SAMPLE, {**QUICK, "edge_length": 0.07, "output_edge_length": 0.035, "output_drape_steps": 10})
     assert any("fine output" in w and "budget" in w for w in r.warnings), r.warnings
     assert r.metrics["output_vertices"] == r.metrics["optimized_vertices"]
     assert r.metrics["output_drape"]["criterion"] == "equilibrium"
