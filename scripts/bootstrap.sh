@@ -17,7 +17,7 @@ VENV=$ROOT/.venv
 STAMPS=$VENV/.stamps
 t0=$(date +%s%N)
 
-say() { printf '[setup] %s\n' "$*"; }
+say() { printf '[setup %3ds] %s\n' "$(( ($(date +%s%N) - t0) / 1000000000 ))" "$*"; }   # seconds since the start
 hash_of() { cat "$@" | sha256sum | cut -c1-16; }
 stamp_ok() { [ -f "$STAMPS/$1" ] && [ "$(cat "$STAMPS/$1")" = "$2" ]; }
 stamp_set() { mkdir -p "$STAMPS"; echo "$2" > "$STAMPS/$1"; }
