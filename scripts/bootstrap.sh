@@ -48,6 +48,7 @@ build_core() {
   cmake --build build/core -- -j"$(nproc)" > build/core-build.log 2>&1
 }
 [ -f build/core/build.ninja ] || say "configuring and building the C++ core (Release, OpenMP; in the background)"
+rm -f build/core-build.log   # a failed configure must not leave an earlier build's log to be shown
 build_core & core_pid=$!
 # a step below failing ends the build too (cmake, ninja and the compilers under it)
 kill_tree() { local c; for c in $(pgrep -P "$1" 2>/dev/null); do kill_tree "$c"; done; kill "$1" 2>/dev/null || true; }
@@ -81,7 +82,8 @@ fi
 
 # 4. (started above) the C++ extension
 if ! wait "$core_pid"; then
-  [ -f build/core-build.log ] && cat build/core-build.log; say "C++ build failed (log: build/core-build.log)"; exit 1
+  [ -f build/core-build.log ] && cat build/core-build.log
+  say "C++ configure or build failed (logs: build/core-configure.log, build/core-build.log)"; exit 1
 fi
 trap - EXIT
 grep -q 'no work to do' build/core-build.log || say "C++ core rebuilt ($(grep -c 'Building CXX' build/core-build.log) file(s))"
