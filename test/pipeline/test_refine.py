@@ -78,8 +78,8 @@ def test_recover_writes_a_finer_settled_mesh():
 
 
 def test_an_unsettled_fine_mesh_keeps_the_coarse_result():
-    """A fine drape that cannot settle within its step budget is reported and the optimized
-    coarse mesh is returned: nothing already produced is lost."""
+    """A fine drape that cannot settle within its step budget is reported and the coarse result
+    (here, QUICK, the template's coarse equilibrium) is returned: nothing already produced is lost."""
     r = recover(SAMPLE, {**QUICK, "edge_length": 0.07, "output_edge_length": 0.035, "output_drape_steps": 10})
     assert any("fine output" in w and "budget" in w for w in r.warnings), r.warnings
     assert r.metrics["output_vertices"] == r.metrics["optimized_vertices"]
