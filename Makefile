@@ -13,8 +13,11 @@ setup:
 demo: setup
 	@$(VENV)/bin/diffavatar demo --out out/demo
 
+# one pytest-xdist worker per core (tests that share a cached result are kept on one worker by
+# their xdist_group mark, hence loadgroup); each worker's core keeps its 2 OpenMP threads
+TEST_WORKERS ?= $(shell nproc)
 test: setup
-	@$(PY) -m pytest -q test
+	@$(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadgroup test
 
 bench: setup
 	@scripts/bench.sh

@@ -86,7 +86,10 @@ if ! wait "$core_pid"; then
   say "C++ configure or build failed (logs: build/core-configure.log, build/core-build.log)"; exit 1
 fi
 trap - EXIT
-grep -q 'no work to do' build/core-build.log || say "C++ core rebuilt ($(grep -c 'Building CXX' build/core-build.log) file(s))"
+if ! grep -q 'no work to do' build/core-build.log; then
+  n=$(grep -c 'Building CXX' build/core-build.log || true)
+  if [ "$n" -gt 0 ]; then say "C++ core rebuilt ($n file(s))"; else say "C++ core relinked"; fi
+fi
 
 # 5. editable install (entry points); only when setup.py changes
 setup_hash=$(hash_of setup.py)

@@ -3,14 +3,19 @@ import faulthandler
 import os
 import sys
 
-import pytest
+# `make test` runs one pytest-xdist worker per core, each with the core's 2 OpenMP threads: threads
+# that wait for work sleep instead of spinning on a core the other worker needs (read by libgomp
+# when diffavatar_core._core first loads, below this line).
+os.environ.setdefault("OMP_WAIT_POLICY", "passive")
+
+import pytest  # noqa: E402
 
 from shared_data import REPO, SHARED_DATA, shared_file  # noqa: F401 (re-exported for fixtures)
 
 
 @pytest.fixture(autouse=True, scope="session")
 def _two_threads():
-    """Tests run with the core's thread count fixed (determinism), as CI's 2 cores."""
+    """Tests run with the core's thread count fixed at CI's 2 cores, in every xdist worker."""
     import diffavatar_core
     diffavatar_core.set_num_threads(2)
 

@@ -4,7 +4,13 @@ test_node checks that the node's real job gives the same assets (each used to re
 itself, about 80 s apiece on a 2-core machine). Callers must not modify what it returns."""
 import functools
 
+import pytest
+
 from diffavatar_core.demo import SAMPLE
+
+# Tests that use recovered_sample run on one pytest-xdist worker (`make test` runs two), so that the
+# recovery is made once, not once per worker.
+SAMPLE_GROUP = pytest.mark.xdist_group("sample_recovery")
 
 
 @functools.lru_cache(maxsize=None)

@@ -21,7 +21,7 @@ from diffavatar_core.sim.material import ClothMaterial
 
 from branch_difference import BRANCH_TOL, differences_on_one_branch
 from bundled_sample import NO_BENDING_SEARCH, QUICK
-from sample_recovery import recovered_sample
+from sample_recovery import SAMPLE_GROUP, recovered_sample
 
 
 @pytest.mark.parametrize("problem,boundary_scale,interior_to", [("skirt_problem", 0.0, "points"),
@@ -163,6 +163,7 @@ def recovered(tmp_path_factory):
     return r, out, list(stages)
 
 
+@SAMPLE_GROUP
 def test_end_to_end_recovery_moves_toward_the_ground_truth(recovered):
     """The bundled sample scan (a skirt with perturbed length and hem): a few iterations reduce
     the Chamfer distance and bring the pattern area closer to the truth; every output is
@@ -229,6 +230,7 @@ def test_end_to_end_recovery_moves_toward_the_ground_truth(recovered):
     assert [h.get("stage") for h in j["loss_history"][:n_fit]] == ["measurements"] * n_fit
 
 
+@SAMPLE_GROUP
 def test_result_directory_reloads_as_its_own_equilibrium(recovered):
     """The written assets (pattern.json rest shape, material, body parameters) rebuild a cloth
     whose recovered drape is an equilibrium of its own anchors: re-solved without them, no vertex
@@ -252,6 +254,7 @@ def test_result_directory_reloads_as_its_own_equilibrium(recovered):
     assert d < max(5e-4, 2 * move), (d, move)   # self-anchored (Cloth.self_anchor)
 
 
+@SAMPLE_GROUP
 def test_a_reload_uses_the_recoverys_contact_plane(recovered, tmp_path):
     """result.json records the contact plane the drape is an equilibrium of; the reloaded Cloth
     uses it (a valley recovery reloaded with face planes would move); an unknown one is named.
@@ -279,6 +282,7 @@ def test_a_reload_uses_the_recoverys_contact_plane(recovered, tmp_path):
         load_result(d)
 
 
+@SAMPLE_GROUP
 def test_animate_a_result_directory(recovered, tmp_path):
     """`diffavatar animate RESULT_DIR`: the recovered skirt stays on the walking recovered body."""
     import subprocess
@@ -387,6 +391,7 @@ def test_a_recovery_whose_start_does_not_drape_warns_and_returns_the_template(mo
     assert abs(r.metrics["pattern_area_m2"] / r.metrics["template_area_m2"] - 1) > 0.01
 
 
+@SAMPLE_GROUP
 def test_a_result_farther_from_the_scan_than_the_template_says_so(recovered, monkeypatch):
     """Fault injected: the final drape's Chamfer distance is measured 1 cm larger than the
     template's initial drape's (as benchmark dress 100 under round-off seed 2 with boundary_scale

@@ -29,6 +29,7 @@ from diffavatar_ros import convert
 from diffavatar_ros.node import (LARGE_DATA_ENV, PROGRESS_QOS, SCAN_QOS, DiffAvatarNode, result_qos,
                                  shutdown_executor)
 from service_helpers import SphereFitRunner, grid_sphere, small_scan
+from sample_recovery import SAMPLE_GROUP
 
 HERE = pathlib.Path(__file__).resolve().parent
 NS = "/diffavatar_node"
@@ -834,6 +835,7 @@ def test_duplicate_job_id_is_refused_and_a_rerun_replaces_the_record(setup_servi
     assert (out / "result.json").exists() and not (out / "error.json").exists()
 
 
+@SAMPLE_GROUP
 def test_the_default_runner_recovers_the_sample_scan(setup_service, tmp_path):
     """The node with its real job (diffavatar_core.pipeline.recover): the bundled sample scan sent
     in cm gets a successful result whose fit improved, written to disk like the CLI's, and its
