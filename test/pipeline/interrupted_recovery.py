@@ -26,10 +26,13 @@ class Interrupted:
         return [line for line in self.stderr.splitlines() if not line.startswith("[")]
 
 
-def interrupt_recovery(out, iterations: int, when, settle_s: float = 0.0, reach_s: float = 20.0,
+def interrupt_recovery(out, iterations: int, when, settle_s: float = 0.0, reach_s: float = 120.0,
                        end_s: float = 10.0) -> Interrupted:
     """Runs the recovery with `--out out`, sends SIGINT settle_s after the first progress line for
-    which when(line) holds (within reach_s s of the start), and waits up to end_s s for its end."""
+    which when(line) holds (within reach_s s of the start), and waits up to end_s s for its end.
+    reach_s only bounds the wait for that line (the body fit before the drape takes ~10 s alone on
+    a 2-core machine and over 20 s beside the other pytest-xdist worker); what is asserted about the
+    interrupt is the caller's."""
     p = subprocess.Popen([sys.executable, "-m", "diffavatar_core", "recover", str(SAMPLE), "--units", "cm",
                           "--iterations", str(iterations), "--out", str(out)], cwd=ROOT, stdout=subprocess.PIPE,
                          stderr=subprocess.PIPE, text=True,
