@@ -8,7 +8,7 @@ import pytest
 
 from diffavatar_core.demo import SAMPLE
 
-# Tests that use recovered_sample run on one pytest-xdist worker (`make test` runs two), so that the
+# Tests that use recovered_sample run on one pytest-xdist worker (`make test` runs one per core), so the
 # recovery is made once, not once per worker.
 SAMPLE_GROUP = pytest.mark.xdist_group("sample_recovery")
 
