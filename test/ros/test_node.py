@@ -29,7 +29,7 @@ from diffavatar_ros import convert
 from diffavatar_ros.node import (LARGE_DATA_ENV, PROGRESS_QOS, SCAN_QOS, DiffAvatarNode, result_qos,
                                  shutdown_executor)
 from service_helpers import SphereFitRunner, grid_sphere, small_scan
-from sample_recovery import SAMPLE_GROUP
+from sample_recovery import SAMPLE_GROUP, recovered_sample
 
 HERE = pathlib.Path(__file__).resolve().parent
 NS = "/diffavatar_node"
@@ -844,7 +844,6 @@ def test_the_default_runner_recovers_the_sample_scan(setup_service, tmp_path):
     from diffavatar_core.demo import SAMPLE
     from diffavatar_core.scan import read_scan_file
     from diffavatar_ros.node import default_runner
-    from sample_recovery import recovered_sample
     raw = read_scan_file(SAMPLE)
     svc, cli = setup_service(runner=default_runner)
     cli.send(convert.scan_to_msg(raw.vertices, raw.faces, raw.labels, (), units="cm", job_id="sample",
