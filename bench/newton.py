@@ -17,7 +17,10 @@ rest shape then scaled by 1.01 (a pattern step of the co-optimization) and:
   * newton: the warm re-equilibration after the rest-shape step (Cloth.refine, anchors at the
     drape, κ = 1/s²): iterations, wall ms per iteration (gradient, assembly, LDLᵀ, line search);
     newton_supernodal: the same from a clone with `supernodal_newton` on, and how far apart the
-    two equilibria are.
+    two equilibria are; newton_hinge_clamp: from a clone with `hinge_clamp` on — the projected
+    Hessian's hinge blocks clamped to their non-negative eigenvalues, the Newton of stops 31–58
+    (the reference; the default uses their Gauss–Newton parts, stop 59) — its iterations, wall
+    and how far its equilibrium is from the default's; with the projected assembly's time both ways.
 Times in ms on this machine; quote the ratios (2-core machines are noisy).
 """
 from __future__ import annotations
@@ -86,21 +89,35 @@ def case(edge, repeats):
             "solution_relative_difference": float(np.linalg.norm(our_x - ref_x) / np.linalg.norm(ref_x)),
             "relative_residual_ours": float(np.linalg.norm(B @ our_x - b) / np.linalg.norm(b)),
             "relative_residual_reference": float(np.linalg.norm(B @ ref_x - b) / np.linalg.norm(b))}
+    # the projected assembly with the hinge blocks clamped (the reference) against Gauss–Newton
+    # (the same solver, its contacts and anchors, the switch flipped; interleaved)
+    gn_ms, clamp_ms = [], []
+    for _ in range(repeats):
+        s.hinge_clamp = True
+        clamp_ms.append(ms(lambda: s.newton_hessian(x, G, True)))
+        s.hinge_clamp = False
+        gn_ms.append(ms(lambda: s.newton_hessian(x, G, True)))
+    out["assembly_projected_hinge_blocks"] = {"clamp_ms": min(clamp_ms), "gauss_newton_ms": min(gn_ms),
+                                              "speedup_vs_clamp": min(clamp_ms) / min(gn_ms)}
     rest = np.asarray(cloth.control.rest)
     cloth.set_control(rest=rest * 1.01)
-    twins = {"simplicial": cloth.clone(), "supernodal": cloth.clone()}   # the same state, contacts, BVH
-    twins["supernodal"].solver.supernodal_newton = True
+    twins = {"simplicial": cloth.clone(), "supernodal": cloth.clone(), "hinge_clamp": cloth.clone()}
+    twins["supernodal"].solver.supernodal_newton = True   # the same state, contacts, BVH
+    twins["hinge_clamp"].solver.hinge_clamp = True
     ends = {}
     for name, c in twins.items():   # one after the other, the reference first
         t0 = time.perf_counter()
         it, res = c.refine(keep_anchor=False, residual_tol=1e-7, refine_iterations=120, anchor_stiffness=1.0)
         wall = time.perf_counter() - t0
         ends[name] = np.array(c.x)
-        out["newton" if name == "simplicial" else "newton_supernodal"] = {
+        out["newton" if name == "simplicial" else f"newton_{name}"] = {
             "iterations": int(it), "residual": float(res), "wall_ms": 1e3 * wall, "ms_per_iteration": 1e3 * wall / max(it, 1)}
     out["newton_supernodal"]["speedup_per_iteration_vs_simplicial"] = (
         out["newton"]["ms_per_iteration"] / out["newton_supernodal"]["ms_per_iteration"])
     out["newton_supernodal"]["max_position_difference_m"] = float(np.abs(ends["simplicial"] - ends["supernodal"]).max())
+    ref = out["newton_hinge_clamp"]
+    ref["default_speedup_vs_clamp"] = ref["wall_ms"] / out["newton"]["wall_ms"]
+    ref["max_position_difference_m"] = float(np.abs(ends["simplicial"] - ends["hinge_clamp"]).max())
     return out
 
 

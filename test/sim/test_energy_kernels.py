@@ -109,14 +109,16 @@ def _clamp(H):
     return (V * np.maximum(w, 0.0)) @ V.T
 
 
-def test_projected_element_hessians_are_their_eigenvalue_clamps():
-    """Far from equilibrium Newton uses each element Hessian clamped to its non-negative
-    eigenvalues; the core computes that clamp on the element's translation-free subspace
-    (cloth_energy.cpp project_psd). It must equal the clamp of the whole element matrix: a single
-    compressed, sheared triangle (indefinite), and a hinge folded 60° between two stretched
-    triangles (their stretch Hessian is PSD, so the projection changes the hinge part only:
-    expected = stretch + clamp(hinge), the hinge part being the difference with and without
-    bending)."""
+def test_projected_element_hessians_are_psd_clamps_and_gauss_newton():
+    """Far from equilibrium Newton uses positive semi-definite element Hessians
+    (cloth_energy.cpp element_hessians). A triangle's is its Hessian clamped to its non-negative
+    eigenvalues, computed on the element's translation-free subspace (project_psd); it must equal
+    the clamp of the whole element matrix: a single compressed, sheared triangle (indefinite).
+    A hinge's is the Gauss–Newton part k w ∇θ∇θᵀ of its exact k w (∇θ∇θᵀ + θ∇²θ): checked on a
+    hinge folded 60° between two stretched triangles against the bending energy E_b and gradient
+    ∇E_b = k w θ ∇θ alone (the differences with and without bending), as ∇E_b ∇E_bᵀ / (2 E_b);
+    the exact hinge part there is indefinite, the projected one PSD of rank one. With
+    `hinge_clamp` (bench/newton.py's reference) the hinge block is clamped like a triangle's."""
     rest = np.array([[0.0, 0.0], [0.1, 0.0], [0.0, 0.1]])
     x = np.array([[0.0, 0.0, 0.0], [0.07, 0.01, 0.02], [0.03, 0.08, -0.01]])
     tri = Cloth(rest, np.array([[0, 1, 2]]), x, materials=ClothMaterial(weft_compliance=3e-3),
@@ -126,20 +128,53 @@ def test_projected_element_hessians_are_their_eigenvalue_clamps():
     Hp = tri.solver.energy_hessian(x, G, project=True).toarray()
     np.testing.assert_allclose(Hp, _clamp(H), atol=1e-12 * np.abs(H).max())
 
+    bent, flat, x = _folded_hinge(np.pi / 3)
+    Hs = flat.solver.energy_hessian(x, G, project=False).toarray()
+    assert np.linalg.eigvalsh(Hs).min() > -1e-12 * np.abs(Hs).max()   # stretched: clamping keeps it
+    Hh = bent.solver.energy_hessian(x, G, project=False).toarray() - Hs
+    assert np.linalg.eigvalsh(Hh).min() < -1e-3 * np.abs(Hh).max()
+    Eb = bent.solver.energy(x, G) - flat.solver.energy(x, G)
+    gb = (np.asarray(bent.solver.energy_gradient(x, G)) - np.asarray(flat.solver.energy_gradient(x, G))).reshape(-1)
+    assert Eb > 0
+    gauss_newton = np.outer(gb, gb) / (2 * Eb)
+    Hp = bent.solver.energy_hessian(x, G, project=True).toarray()
+    np.testing.assert_allclose(Hp - Hs, gauss_newton, atol=1e-10 * np.abs(Hs + Hh).max())
+    w = np.linalg.eigvalsh(Hp - Hs)
+    assert w.min() > -1e-12 * w.max() and np.sum(w > 1e-9 * w.max()) == 1
+    # the reference kept for bench/newton.py (the Newton of stops 31–58): the hinge block clamped
+    bent.solver.hinge_clamp = True
+    assert bent.clone().solver.hinge_clamp
+    Hc = bent.solver.energy_hessian(x, G, project=True).toarray()
+    np.testing.assert_allclose(Hc, Hs + _clamp(Hh), atol=1e-10 * np.abs(Hs + Hh).max())
+    # the exact Hessian does not depend on the switch
+    np.testing.assert_array_equal(bent.solver.energy_hessian(x, G, project=False).toarray(), Hs + Hh)
+
+
+def test_projected_hinge_hessian_is_the_exact_one_at_the_rest_angle():
+    """At its rest angle (θ = θ0: here a flat hinge of a flat pattern) the term θ∇²θ vanishes, so
+    the Gauss–Newton hinge block far from equilibrium is the exact one: with the same stretched
+    triangles, the projected and exact Hessians differ by the triangles' clamp alone — none."""
+    bent, flat, x = _folded_hinge(0.0)
+    for cloth in (bent, flat):
+        H = cloth.solver.energy_hessian(x, G, project=False).toarray()
+        Hp = cloth.solver.energy_hessian(x, G, project=True).toarray()
+        np.testing.assert_allclose(Hp, H, atol=1e-10 * np.abs(H).max())
+    Hb = bent.solver.energy_hessian(x, G, project=False).toarray()
+    Hf = flat.solver.energy_hessian(x, G, project=False).toarray()
+    assert np.abs(Hb - Hf).max() > 1e-6 * np.abs(Hf).max()   # the hinge does contribute
+
+
+def _folded_hinge(angle):
+    """Two triangles sharing the x axis, the second turned by `angle` (rad) about it, all
+    stretched 10%; with bending (1e-3 N·m) and without."""
     rest = np.array([[0.0, 0.0], [0.1, 0.0], [0.05, 0.08], [0.05, -0.08]])
     F = np.array([[0, 1, 2], [0, 3, 1]])
-    a = np.pi / 3   # triangle 2 turned 60° about the shared edge (the x axis), all stretched 10%
     x = np.column_stack([rest, np.zeros(4)])
-    x[3] = [0.05, -0.08 * np.cos(a), 0.08 * np.sin(a)]
+    x[3] = [0.05, -0.08 * np.cos(angle), 0.08 * np.sin(angle)]
     x *= 1.1
     bent = Cloth(rest, F, x, materials=ClothMaterial(bend_stiffness=1e-3))
     flat = Cloth(rest, F, x, materials=ClothMaterial(bend_stiffness=0.0))
-    Hs = flat.solver.energy_hessian(x, G, project=False).toarray()
-    assert np.linalg.eigvalsh(Hs).min() > -1e-12 * np.abs(Hs).max()
-    Hh = bent.solver.energy_hessian(x, G, project=False).toarray() - Hs
-    assert np.linalg.eigvalsh(Hh).min() < -1e-3 * np.abs(Hh).max()
-    Hp = bent.solver.energy_hessian(x, G, project=True).toarray()
-    np.testing.assert_allclose(Hp, Hs + _clamp(Hh), atol=1e-10 * np.abs(Hs + Hh).max())
+    return bent, flat, x
 
 
 def test_rest_state_has_zero_energy_and_no_correction():

@@ -188,6 +188,10 @@ void bind_sim(py::module_& m) {
       .def_property("supernodal_newton", &XpbdSolver::supernodal_newton, &XpbdSolver::set_supernodal_newton,
                     "Whether refine() solves its Newton steps by the supernodal LDLᵀ (linalg/supernodal_ldlt.hpp) "
                     "instead of Eigen's SimplicialLDLT (default False; the same solution up to round-off). Clones copy it.")
+      .def_property("hinge_clamp", &XpbdSolver::hinge_clamp, &XpbdSolver::set_hinge_clamp,
+                    "Whether refine()'s projected Hessian (far from equilibrium) clamps each hinge's block to its "
+                    "non-negative eigenvalues — the Newton of stops 31–58, bench/newton.py's reference — instead of "
+                    "using its Gauss–Newton part k w ∇θ∇θᵀ (default False). Clones copy it.")
       .def_property("contact_query_cache", &XpbdSolver::use_query_cache, &XpbdSolver::set_use_query_cache,
                     "Whether step() detects contacts through its per-vertex query cache (default True; "
                     "the same contacts either way: sim/contact_query_cache.hpp).")

@@ -192,7 +192,15 @@ ElementHessians element_hessians(const EnergyContext& c, const RowMatX3d& x, boo
     double xs[12], th;
     Eigen::Matrix<double, 12, 1> g;
     if (!hinge_angle(m, x, h, xs, &th, &g)) continue;
-    // ∇²(½ k w θ²) = k w (∇θ ∇θᵀ + θ ∇²θ), ∇²θ by HingeGeom (bending_kernel.hpp)
+    // ∇²(½ k w θ²) = k w (∇θ ∇θᵀ + θ ∇²θ), ∇²θ by HingeGeom (bending_kernel.hpp). Far from
+    // equilibrium (psd) its Gauss–Newton part k w ∇θ ∇θᵀ: PSD by construction, the exact block at
+    // the rest angle, and no 9×9 eigenproblem — the clamp of the whole block cost more than the
+    // rest of the assembly and, on the recovery's re-drapes, made more Newton iterations
+    // (BENCHMARKS.md stop 59).
+    if (psd && !c.hinge_clamp) {
+      eh.hinge[h] = k * c.cache.hinge_weight[h] * (g * g.transpose());
+      continue;
+    }
     eh.hinge[h] = k * c.cache.hinge_weight[h] * (g * g.transpose() + th * HingeGeom(xs).hessian());
     if (psd) eh.hinge[h] = project_psd<4>(eh.hinge[h]);
   }

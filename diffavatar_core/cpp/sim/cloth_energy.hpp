@@ -30,6 +30,9 @@ struct EnergyContext {
   // anchors a (the settled XPBD positions) and κ in 1/s²; κ = 0 or a == nullptr disables it.
   const RowMatX3d* anchor = nullptr;
   double anchor_stiffness = 0.0;
+  // project_psd: each hinge's block clamped to its non-negative eigenvalues (the Newton of stops
+  // 31–58, kept as bench/newton.py's reference) instead of its Gauss–Newton part.
+  bool hinge_clamp = false;
 };
 
 double total_energy(const EnergyContext& ctx, const RowMatX3d& x);
@@ -40,8 +43,10 @@ Eigen::SparseMatrix<double> energy_hessian(const EnergyContext& ctx, const RowMa
                                            bool project_psd);
 
 /// The element Hessians ∇ₓ²E sums (J/m²): stretch per triangle (9×9 over its corners) and bending
-/// per hinge (12×12; zero for a degenerate hinge or k_b = 0), each clamped to its non-negative
-/// eigenvalues when project_psd.
+/// per hinge (12×12; zero for a degenerate hinge or k_b = 0). When project_psd (Newton far from
+/// equilibrium) each is positive semi-definite: a triangle's clamped to its non-negative
+/// eigenvalues, a hinge's its Gauss–Newton part k w ∇θ ∇θᵀ (bending_kernel.hpp; clamped too when
+/// ctx.hinge_clamp).
 struct ElementHessians {
   std::vector<Eigen::Matrix<double, 9, 9>> tri;
   std::vector<Eigen::Matrix<double, 12, 12>> hinge;

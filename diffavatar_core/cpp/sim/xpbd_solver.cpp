@@ -32,6 +32,7 @@ XpbdSolver XpbdSolver::clone() const {
   c.collider_ = collider_.clone();
   c.use_query_cache_ = use_query_cache_;
   c.newton_.set_supernodal(newton_.supernodal());
+  c.hinge_clamp_ = hinge_clamp_;
   return c;
 }
 
@@ -303,6 +304,7 @@ EnergyContext XpbdSolver::energy_context(const Vec3& gravity) const {
     ctx.anchor = &anchor_;
     ctx.anchor_stiffness = anchor_k_;
   }
+  ctx.hinge_clamp = hinge_clamp_;
   return ctx;
 }
 
@@ -363,9 +365,10 @@ int XpbdSolver::refine(ClothState& s, const SimParams& p, const DrapeParams& d, 
     VecXd g(n);
     for (int i = 0; i < model_.num_vertices; ++i)
       if (dof[i] >= 0) g.segment<3>(dof[i]) = G.row(i).transpose();
-    // Far from equilibrium the element Hessians are projected to be positive semi-definite;
-    // close to it the exact Hessian is used (quadratic convergence; compressed triangles make
-    // the projected one differ) as long as it yields a descent direction.
+    // Far from equilibrium the element Hessians are made positive semi-definite (triangles
+    // clamped, hinges Gauss–Newton: cloth_energy.hpp); close to it the exact Hessian is used
+    // (quadratic convergence; compressed triangles and bent hinges make the projected one
+    // differ) as long as it yields a descent direction.
     const bool exact = res < 1.0 && reg == 0.0;
     // ∇²E on the mesh's fixed pattern, its symbolic factorization kept across iterations and
     // calls (sim/newton_system.hpp; the same matrix and iterates as energy_hessian's).

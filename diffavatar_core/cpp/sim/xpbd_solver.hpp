@@ -132,6 +132,10 @@ class XpbdSolver {
   /// refine()'s LDLᵀ: linalg/supernodal_ldlt.hpp when on, Eigen's SimplicialLDLT otherwise.
   void set_supernodal_newton(bool on) { newton_.set_supernodal(on); }
   bool supernodal_newton() const { return newton_.supernodal(); }
+  /// The projected Hessian's hinge blocks clamped to their non-negative eigenvalues (the Newton
+  /// of stops 31–58: bench/newton.py's reference) instead of their Gauss–Newton parts.
+  void set_hinge_clamp(bool on) { hinge_clamp_ = on; }
+  bool hinge_clamp() const { return hinge_clamp_; }
   const ContactQueryCache& query_cache() const { return query_cache_; }
 
  private:
@@ -145,6 +149,7 @@ class XpbdSolver {
   BodyCollider collider_;
   ContactQueryCache query_cache_;  // step()'s detections on the current body pose
   bool use_query_cache_ = true;
+  bool hinge_clamp_ = false;
   std::vector<Contact> contacts_;
   std::vector<ContactFrame> frames_;  // of contacts_, on control_'s body
   void set_contacts(std::vector<Contact> contacts);
