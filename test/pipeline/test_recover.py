@@ -718,18 +718,22 @@ def test_a_remembered_fresh_drape_is_the_one_made_again(skirt_problem):
 def test_try_initial_redrapes_from_the_template_drape(skirt_problem):
     """try_initial evaluates φ from the current warm start and from a re-drape of the same
     parameters that starts at the template's initial drape, and keeps the lower: the candidate does
-    not depend on where the warm starts have wandered (the same φ from three of them), and a warm
-    start left in a worse state — a 5% smaller skirt's drape, which the template's own parameters
-    re-drape from into a state farther from the scan — is replaced by it. φ with σ = 1 (the interior
-    term's weight this scenario was measured with; the default 30 puts the two states 16% apart)."""
+    not depend on where the warm starts have wandered (the same φ from five of them), and a warm
+    start left in a worse state — a smaller skirt's drape, which the template's own parameters
+    re-drape from into a state farther from the scan — is replaced by it. Which smaller skirt's
+    drape is such a state moves with the last bits of the pattern (drapes are chaotic): until stop
+    58 the 5% smaller one's was (1.2× the template drape's φ); since Newton's Gauss–Newton hinge
+    blocks (stop 59) the 6%, 8% and 10% smaller ones' are (1.6×, 2.2×, 2.2×), and under
+    `--roundoff-seed 2` the 8% one's is not — so three are tried and one must be. φ with σ = 1 (the
+    interior term's weight this scenario was first measured with)."""
     model, p, g, cloth, pts, loops = skirt_problem
     x_init = np.array(cloth.x)
     o = RecoverOptions.from_config(residual_tol=1e-8, samples=200)
     o = o.with_(weights=Weights(**{**o.weights.__dict__, "interior": 1.0}))
     obj = CoOptObjective(cloth, g, pts, loops, o, cage=build_cage(g))
     theta0 = obj.initial_params()
-    candidates = []
-    for f in (1.04, 1.08, 0.95):
+    candidates, smaller = [], []
+    for f in (1.04, 1.08, 0.94, 0.92, 0.90):
         cloth.reset(x_init)
         obj.x_warm = x_init.copy()
         obj(dict(theta0, handles=theta0["handles"] * f))
@@ -741,8 +745,11 @@ def test_try_initial_redrapes_from_the_template_drape(skirt_problem):
         assert np.isfinite(v_warm) and np.isfinite(v_init) and used == (v_init < v_warm)
         assert np.array_equal(obj.x_warm, obj.x_last if used else x_before)
         candidates.append(v_init)
-    assert candidates[0] == candidates[1] == candidates[2]
-    assert used and v_warm > 1.2 * v_init, (v_warm, v_init)   # the 0.95 skirt's state is the worse one
+        if f < 1:
+            smaller.append((f, used, v_warm / v_init))
+    assert len(set(candidates)) == 1
+    # a smaller skirt's state is the worse one, by more than 20%, and it is replaced
+    assert any(used and ratio > 1.2 for _, used, ratio in smaller), smaller
 
 
 def test_body_after_holds_the_body_first(skirt_problem):

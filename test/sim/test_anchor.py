@@ -78,9 +78,11 @@ def test_self_anchor_ends_at_an_equilibrium_without_anchor_forces():
 
 
 def _sheet_on_a_coarse_sphere():
-    """The sheet over an 80-face icosphere (sheet_on_sphere): with the face contact planes a
-    vertex's plane jumps where its closest face changes."""
-    return sheet_on_sphere(11, subdivisions=1)
+    """The sheet (13×13 vertices) over an 80-face icosphere (sheet_on_sphere): with the face contact
+    planes a vertex's plane jumps where its closest face changes. (The 11×11 sheet showed the jump
+    until stop 58; since Newton's Gauss–Newton hinge blocks, stop 59, its rounds end where no plane
+    switches, and the 13×13 one's do.)"""
+    return sheet_on_sphere(13, subdivisions=1)
 
 
 def test_self_anchor_ends_at_an_equilibrium_of_its_own_contact_planes(monkeypatch):
@@ -88,7 +90,7 @@ def test_self_anchor_ends_at_an_equilibrium_of_its_own_contact_planes(monkeypatc
     has other closest faces re-solves with those. Converged, the state is an equilibrium with the
     planes detected there — a fresh Cloth (a reloaded asset) started there stays within 1 µm.
     Without the re-solves (CONTACT_REDETECTIONS = 0: the rounds before stop 34) the same rounds
-    report convergence at a state whose own planes leave a residual above 1 (measured 343), as
+    report convergence at a state whose own planes leave a residual above 1 (measured 462), as
     the sample skirt's under `--roundoff-seed 10`, which reloaded moved 0.75 mm."""
     import diffavatar_core.sim.cloth as cloth_module
     cloth = _sheet_on_a_coarse_sphere()
