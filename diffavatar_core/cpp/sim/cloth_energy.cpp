@@ -194,9 +194,9 @@ ElementHessians element_hessians(const EnergyContext& c, const RowMatX3d& x, boo
     if (!hinge_angle(m, x, h, xs, &th, &g)) continue;
     // ∇²(½ k w θ²) = k w (∇θ ∇θᵀ + θ ∇²θ), ∇²θ by HingeGeom (bending_kernel.hpp). Far from
     // equilibrium (psd) its Gauss–Newton part k w ∇θ ∇θᵀ: PSD by construction, the exact block at
-    // the rest angle, and no 9×9 eigenproblem — the clamp of the whole block cost more than the
-    // rest of the assembly and, on the recovery's re-drapes, made more Newton iterations
-    // (BENCHMARKS.md stop 59).
+    // the rest angle, and no 9×9 eigenproblem — the clamp of the whole block cost twice the rest of
+    // the assembly, and bench/newton.py's re-equilibration took 55 Newton iterations with it, 39
+    // without (BENCHMARKS.md stop 59).
     if (psd && !c.hinge_clamp) {
       eh.hinge[h] = k * c.cache.hinge_weight[h] * (g * g.transpose());
       continue;
