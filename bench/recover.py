@@ -39,6 +39,9 @@ bit for bit); bendrange_D (the recovered bending's range judged at ±d for each 
 joined by +, e.g. bendrange_0.15+0.5+1, the default; bendrange_none: not judged, the reference of its cost — the
 results are the same bit for bit); newton_supernodal / newton_simplicial (Newton's LDLᵀ, `newton_solver`: the
 supernodal one or Eigen's, the default — the same solutions up to round-off, so the drapes may find other folds);
+hinges_clamp / hinges_gauss_newton (a hinge's block of Newton's projected Hessian, `newton_hinge_blocks`: clamped
+to its non-negative eigenvalues, the default before stop 59, or its Gauss–Newton part, the default — the same
+equilibria, other paths to them, so other folds);
 edge_L (the optimization's mesh at an edge of L cm, `edge_length`, e.g. edge_2; the default 4 — the truths keep theirs).
 
 The floor: each case's truth.chamfer_truth_cm is the truth's own drape against the scan (the scan's
@@ -83,7 +86,7 @@ VARIANTS = ("full", "no_cage", "no_seam", "no_curvature")
 EXTRA_VARIANTS = ("euclidean", "no_cage_euclidean", "unguided", "no_measurement_fit", "fixed_masses", "stretch", "bending_step_1",
                   "robust_boundary", "unsized", "interior_K", "to_surface", "to_points",
                   "guided_K", "bendtry_D", "outdrag_K", "fitbend_D", "bendcompare_M@K", "fitrefit_M@K", "workers_N", "bendrange_D", "edge_L",
-                  "newton_supernodal", "newton_simplicial")   # interior_K: σ = K per m², e.g. interior_1; guided_K: κ_g = K per s² (K+L+…: each in turn)
+                  "newton_supernodal", "newton_simplicial", "hinges_clamp", "hinges_gauss_newton")   # interior_K: σ = K per m², e.g. interior_1; guided_K: κ_g = K per s² (K+L+…: each in turn)
 
 
 def corner_edge_lengths(g, corners_from=None) -> list:
@@ -208,6 +211,8 @@ def options_for(variant, iterations, output_edge=0.0, friction=None, contact_nor
         return o.with_(bending_range_offsets=_decades_variant(variant, "bendrange_", "offsets", "0.15+0.5+1"))
     if variant in ("newton_supernodal", "newton_simplicial"):   # Newton's LDLᵀ
         return o.with_(newton_solver=variant[len("newton_"):])
+    if variant in ("hinges_clamp", "hinges_gauss_newton"):   # a hinge's block of Newton's projected Hessian
+        return o.with_(newton_hinge_blocks=variant[len("hinges_"):])
     if variant.startswith("edge_"):   # the optimization's mesh: edge length in cm, e.g. edge_2 (the default 4)
         try:
             edge = float(variant[len("edge_"):]) / 100.0

@@ -10,7 +10,7 @@ from dataclasses import dataclass, field, fields, replace
 
 from ..config import load_config
 from ..scan.frame import UP_AXES
-from ..sim.cloth import CONTACT_NORMALS, NEWTON_SOLVERS, SETTLE_DRAG_MAX
+from ..sim.cloth import CONTACT_NORMALS, NEWTON_HINGE_BLOCKS, NEWTON_SOLVERS, SETTLE_DRAG_MAX
 
 PARAMETRIZATIONS = ("cage", "vertices")
 OPTIMIZERS = ("lbfgs", "adam")
@@ -138,6 +138,7 @@ class RecoverOptions:
     bending_fresh_drapes: int = 1   # fresh drapes per bending an unguided judging takes the lowest φ of (CoOptObjective.fresh_min)
     candidate_workers: int = 0   # bending candidates draped at once, in threads (candidate_workers.py); 0: one per CPU of the process
     newton_solver: str = "simplicial"   # the Newton refinement's LDLᵀ: NEWTON_SOLVERS (Cloth.solver.supernodal_newton)
+    newton_hinge_blocks: str = "gauss_newton"   # a hinge's projected Hessian block: NEWTON_HINGE_BLOCKS (Cloth.solver.hinge_clamp)
     length_tolerance_pct: float = 2.0
     length_tolerance_min: float = 0.01
     patience: int = 5
@@ -241,6 +242,7 @@ class RecoverOptions:
             bad("output_edge_length", "must be 0 (off) or lie in [0.005, 0.2] m")
         choice("contact_normals", CONTACT_NORMALS)
         choice("newton_solver", NEWTON_SOLVERS)
+        choice("newton_hinge_blocks", NEWTON_HINGE_BLOCKS)
         choice("parametrization", PARAMETRIZATIONS)
         choice("optimizer", OPTIMIZERS)
         choice("bending", BENDING)

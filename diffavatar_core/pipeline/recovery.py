@@ -174,18 +174,21 @@ def _load_template_file(path, edge_length: float, body_vertices: np.ndarray) -> 
 
 
 def _garment_cloth(g: Garment, rest, x, material, body, bend_stiffness=None, masses_follow_rest=True,
-                   contact_normals: str = "face", newton_solver: str = "simplicial") -> Cloth:
+                   contact_normals: str = "face", newton_solver: str = "simplicial",
+                   newton_hinge_blocks: str = "gauss_newton") -> Cloth:
     """A Cloth of garment g's mesh, seams, panels and grain at rest shape `rest` (V, 2) m and
     state x (V, 3) m, one material for every panel, on body (V, F); bend_stiffness (G,) N·m
     replaces the material's. Its masses follow the rest shape (masses_follow_rest): every
     pattern the optimizer tries weighs what its area does, and the equilibrium adjoint
     differentiates that; with False they stay those of `rest`. contact_normals: the contact
-    plane (sim.cloth.CONTACT_NORMALS); newton_solver: Newton's LDLᵀ (sim.cloth.NEWTON_SOLVERS; its
-    clones keep it)."""
+    plane (sim.cloth.CONTACT_NORMALS); newton_solver: Newton's LDLᵀ (sim.cloth.NEWTON_SOLVERS);
+    newton_hinge_blocks: how Newton's projected Hessian makes a hinge's block PSD
+    (sim.cloth.NEWTON_HINGE_BLOCKS); its clones keep both."""
     cloth = Cloth(rest, g.faces, x, seams=g.seams, groups=g.panel[g.faces[:, 0]],
                   materials=[material] * len(g.panels), body=body, grain=g.face_grain(),
                   masses_follow_rest=masses_follow_rest, contact_normals=contact_normals)
     cloth.solver.supernodal_newton = newton_solver == "supernodal"
+    cloth.solver.hinge_clamp = newton_hinge_blocks == "clamp"
     if bend_stiffness is not None:
         cloth.set_control(bend_stiffness=np.asarray(bend_stiffness, float))
     return cloth
@@ -210,7 +213,8 @@ def _fine_output(g, cage, co, fine: Garment, material, body_vertices, body_faces
     rest = transfer_pattern(g, cage, co.rest[cage.handles], fine)   # MVC interpolate: ζ = x̄[handles]
     x0 = transfer_positions(g, co.x, fine)
     cloth = _garment_cloth(fine, rest, x0, material, (body_vertices, body_faces), co.bend_stiffness,
-                           contact_normals=opts.contact_normals, newton_solver=opts.newton_solver)
+                           contact_normals=opts.contact_normals, newton_solver=opts.newton_solver,
+                           newton_hinge_blocks=opts.newton_hinge_blocks)
     s = settle_carried(cloth, x0, body_vertices, body_faces, opts.output_drape_steps, opts.output_drape_sweeps,
                        opts.output_settle_tol, cancel, opts.output_friction, opts.output_drape_substeps,
                        opts.output_drape_damping)
@@ -288,7 +292,8 @@ def _assets_drape(g, co, material, body_vertices, body_faces, opts, cancel):
     plane's move (m) when the valley re-anchoring replaced it."""
     def anchored(planes):
         cloth = _garment_cloth(g, co.rest, co.x, material, (body_vertices, body_faces), co.bend_stiffness,
-                               contact_normals=planes, newton_solver=opts.newton_solver)
+                               contact_normals=planes, newton_solver=opts.newton_solver,
+                               newton_hinge_blocks=opts.newton_hinge_blocks)
         move = cloth.self_anchor(opts.residual_tol, tol=SELF_ANCHOR_TOL, cancel=cancel, friction=opts.output_friction)
         return (np.array(cloth.x) if np.isfinite(move) else None), move, planes
 
@@ -408,7 +413,8 @@ def _recover(scan, opts: RecoverOptions, ctl: "_Control", body_model, t0: float)
     def initial_drape(garment, planes):
         c = _garment_cloth(garment, garment.rest, garment.x0, material, (body_vertices, model.faces),
                            masses_follow_rest=opts.masses_follow_rest, contact_normals=planes,
-                           newton_solver=opts.newton_solver)
+                           newton_solver=opts.newton_solver,
+                           newton_hinge_blocks=opts.newton_hinge_blocks)
         c.sew(cancel=ctl.token)
         return (c,) + _initial_drape(c, opts, ctl.token)
 

@@ -91,6 +91,10 @@ SETTLE_DRAG_MAX = 20.0
 # Newton's LDLᵀ (XpbdSolver.supernodal_newton): Eigen's SimplicialLDLT, or the supernodal one of
 # linalg/supernodal_ldlt.hpp (the same solutions up to round-off; bench/newton.py)
 NEWTON_SOLVERS = ("simplicial", "supernodal")
+# How Newton's projected Hessian (far from equilibrium) makes a hinge's 12×12 block PSD
+# (XpbdSolver.hinge_clamp): its Gauss–Newton part k w ∇θ∇θᵀ, or the exact block clamped to its
+# non-negative eigenvalues on the translation-free 9×9 subspace (before stop 59; bench/newton.py)
+NEWTON_HINGE_BLOCKS = ("gauss_newton", "clamp")
 
 
 def _sim_params(dt, iterations, gravity, damping, contact_radius, max_speed, fast=False, friction=0.0):

@@ -51,6 +51,7 @@ ZERO_STEPS = {"handles": 0.0, "log10_bending": 0.0, "log10_stretch": 0.0, "shape
     ({"up": ["y"]}, r"up must be one of"),
     ({"contact_normals": ["face"]}, r"contact_normals must be one of"),
     ({"newton_solver": 1}, r"newton_solver must be one of"),
+    ({"newton_hinge_blocks": "exact"}, r"newton_hinge_blocks must be one of"),
     ({"interior_to": {"points": 1}}, r"interior_to must be one of"),
     ({"length_measure": ["raw"]}, r"length_measure must be raw or resampled"),
 ])

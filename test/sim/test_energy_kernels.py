@@ -150,6 +150,34 @@ def test_projected_element_hessians_are_psd_clamps_and_gauss_newton():
     np.testing.assert_array_equal(bent.solver.energy_hessian(x, G, project=False).toarray(), Hs + Hh)
 
 
+def test_the_recoverys_newton_hinge_blocks_reach_its_cloths_and_both_are_psd():
+    """`newton_hinge_blocks` (RecoverOptions) sets how the recovery's cloths, and their clones,
+    project a hinge's block: on a crumpled skirt (every hinge away from its rest angle) both
+    projected Hessians are positive semi-definite, the clamp's and Gauss–Newton's differ, and
+    the exact Hessian is the same for both."""
+    from diffavatar_core.pattern.templates import make_template
+    from diffavatar_core.pipeline.options import RecoverOptions
+    from diffavatar_core.pipeline.recovery import _garment_cloth
+    from diffavatar_core.sim.scenes import sphere
+    g = make_template("skirt", edge_length=0.08)
+    body = sphere(0.3, center=np.array([0.0, 0.5, 0.0]), subdivisions=1)
+    x = g.x0 + 0.01 * np.random.default_rng(3).standard_normal(g.x0.shape)   # m: crumpled
+    projected, exact = {}, {}
+    for name, on in (("gauss_newton", False), ("clamp", True)):
+        opts = RecoverOptions.coerce({"newton_hinge_blocks": name})
+        c = _garment_cloth(g, g.rest, g.x0, ClothMaterial(bend_stiffness=1e-4), body,
+                           newton_hinge_blocks=opts.newton_hinge_blocks)
+        assert c.solver.hinge_clamp == on and c.clone().solver.hinge_clamp == on
+        projected[name] = c.solver.energy_hessian(x, G, project=True).toarray()
+        exact[name] = c.solver.energy_hessian(x, G, project=False).toarray()
+    scale = np.abs(exact["clamp"]).max()
+    np.testing.assert_array_equal(exact["gauss_newton"], exact["clamp"])
+    assert np.linalg.eigvalsh(exact["clamp"]).min() < -1e-6 * scale   # indefinite: the projections act
+    for H in projected.values():
+        assert np.linalg.eigvalsh(H).min() > -1e-10 * scale
+    assert np.abs(projected["clamp"] - projected["gauss_newton"]).max() > 1e-6 * scale
+
+
 def test_projected_hinge_hessian_is_the_exact_one_at_the_rest_angle():
     """At its rest angle (θ = θ0: here a flat hinge of a flat pattern) the term θ∇²θ vanishes, so
     the Gauss–Newton hinge block far from equilibrium is the exact one: with the same stretched
