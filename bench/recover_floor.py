@@ -19,8 +19,14 @@ it is, then moved by the pipeline's FRESH_JITTER noise (seeds 1, 2, …), as CoO
 drapes — each drape's Chamfer (cm; null when it did not converge): whether the lowest of a few fresh
 drapes finds the true bending where every other parameter is exact (truth_outline_bending_cm).
 
+`--retriangulate-bending -0.3,-0.15,0.15,0.3`: also (e) each re-triangulated truth draped at the true
+bending × 10^d for each d (truth_retriangulated_bending_cm {d: {edge: cm}}): with every parameter but
+the bending exact and the mesh not the truth's, whether the scan's Chamfer — over one mesh, or
+averaged over several — is lowest at the true bending.
+
 Run: `.venv/bin/python bench/recover_floor.py [--templates skirt,tshirt] [--cases 3]
-[--contact-normals valley] [--retriangulate 0.975,1,1.025]`."""
+[--first-case K] [--last-case K] [--contact-normals valley] [--retriangulate 0.975,1,1.025]
+[--retriangulate-bending -0.15,0.15]`."""
 
 import numpy as np
 
@@ -117,16 +123,19 @@ def floor_case(template: str, seed: int, bend: float, args) -> dict:
                 c = cloth(rest_truth, bend * 10.0 ** d, x0)
                 row.append(round(cm(c.x, g.faces), 4) if drape(c) else None)
             out["truth_outline_bending_cm"][f"{d:g}"] = row
-    out["truth_retriangulated_cm"] = {}
-    for f in args.retriangulate:   # the truth's own parameters on another mesh of the same pattern, draped as it was
+    def retriangulated(f, b):   # the truth's parameters (bending b) on another mesh of the same pattern, draped as it was
         gt = make_template(template, landmarks=lm, edge_length=0.04 * f, **case.measurements)
         try:
-            c, _ = drape_truth(gt, (case.body_vertices, case.body_faces), bend, compliance_scale=case.compliance_scale,
+            c, _ = drape_truth(gt, (case.body_vertices, case.body_faces), b, compliance_scale=case.compliance_scale,
                                contact_normals=planes)
-            measured = cm(c.x, gt.faces)
+            return cm(c.x, gt.faces)
         except RuntimeError as exc:   # slid off the body or did not converge: said, not measured
-            measured = str(exc)
-        out["truth_retriangulated_cm"][f"{0.04 * f:.4g}"] = measured
+            return str(exc)
+    out["truth_retriangulated_cm"] = {f"{0.04 * f:.4g}": retriangulated(f, bend) for f in args.retriangulate}
+    if args.retriangulate_bending:   # the same meshes at the true bending × 10^d: does φ's data tell d apart there?
+        out["truth_retriangulated_bending_cm"] = {
+            f"{d:g}": {f"{0.04 * f:.4g}": retriangulated(f, bend * 10.0 ** d) for f in args.retriangulate}
+            for d in args.retriangulate_bending}
     return out
 
 
@@ -138,6 +147,8 @@ def main():
         ap.add_argument("--fresh-drapes", type=int, default=3, help="fresh drapes per bending offset (default 3)")
         ap.add_argument("--retriangulate", type=lambda t: [float(v) for v in t.split(",") if v], default=[0.975, 1.0, 1.025],
                         help="edge-length factors of the truth's re-triangulations (default 0.975,1,1.025; 1 re-drapes the truth itself)")
+        ap.add_argument("--retriangulate-bending", type=lambda t: [float(v) for v in t.split(",") if v], default=[],
+                        help="decades: the re-triangulated truths also draped at the true bending × 10^d for each d (default: none)")
     run_grid("recover_floor", floor_case, add_arguments=add_arguments)
 
 

@@ -97,3 +97,24 @@ def test_bad_truth_options_are_named():
         make_case("skirt", seed=0, edge=0.04, truth_edge=0.05)
     with pytest.raises(ValueError, match="compliance_scale"):
         make_case("skirt", seed=0, compliance_scale=0.0)
+
+
+def test_a_split_benchmark_grid_holds_the_whole_grids_cases():
+    """bench/_case_grid.py (recover_floor.py's, material_information.py's cases) split with
+    --first-case / --last-case as bench/recover.py's runs are: each part holds the same (template,
+    seed, bending) as the whole grid at those indices — the bending of case k is set by --cases,
+    10^(−6 + 2k/(n − 1)) N·m — so a split floor run is made of the benchmark's own truths."""
+    import importlib.util
+    from pathlib import Path
+    spec = importlib.util.spec_from_file_location("_case_grid", Path(__file__).parents[2] / "bench" / "_case_grid.py")
+    grid = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(grid)
+    whole = grid.case_grid(["skirt", "tshirt"], 5)
+    assert [c[:2] for c in whole] == [(t, 100 + k) for t in ("skirt", "tshirt") for k in range(5)]
+    assert whole[0][2] == pytest.approx(1e-6) and whole[4][2] == pytest.approx(1e-4)
+    assert whole[2][2] == pytest.approx(1e-5)
+    parts = [grid.case_grid(["skirt", "tshirt"], 5, a, b) for a, b in ((0, 2), (2, 4), (4, None))]
+    by_template = {t: [c for part in parts for c in part if c[0] == t] for t in ("skirt", "tshirt")}
+    assert by_template["skirt"] + by_template["tshirt"] == whole
+    assert grid.case_grid(["tshirt"], 5, 4) == [("tshirt", 104, whole[9][2])]
+    assert grid.case_grid(["skirt"], 3, 1, 99) == grid.case_grid(["skirt"], 3)[1:]
