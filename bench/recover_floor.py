@@ -13,20 +13,20 @@ drape, which a recovery on another triangulation need not reproduce fold for fol
 
 `--contact-normals face|smooth|valley`: the contact plane of the truth and of every drape here.
 
-`--bending-offsets -1,-0.5,0,0.5,1 [--fresh-drapes 3]`: also (d) the truth outline on the template
+`--bending-offsets=-1,-0.5,0,0.5,1 [--fresh-drapes 3]` (with "=": a list that begins with a minus): also (d) the truth outline on the template
 mesh draped fresh at the true bending × 10^d for each d, --fresh-drapes times — the template layout as
 it is, then moved by the pipeline's FRESH_JITTER noise (seeds 1, 2, …), as CoOptObjective.fresh_min
 drapes — each drape's Chamfer (cm; null when it did not converge): whether the lowest of a few fresh
 drapes finds the true bending where every other parameter is exact (truth_outline_bending_cm).
 
-`--retriangulate-bending -0.3,-0.15,0.15,0.3`: also (e) each re-triangulated truth draped at the true
+`--retriangulate-bending=-0.3,-0.15,0.15,0.3`: also (e) each re-triangulated truth draped at the true
 bending × 10^d for each d (truth_retriangulated_bending_cm {d: {edge: cm}}): with every parameter but
 the bending exact and the mesh not the truth's, whether the scan's Chamfer — over one mesh, or
 averaged over several — is lowest at the true bending.
 
 Run: `.venv/bin/python bench/recover_floor.py [--templates skirt,tshirt] [--cases 3]
 [--first-case K] [--last-case K] [--contact-normals valley] [--retriangulate 0.975,1,1.025]
-[--retriangulate-bending -0.15,0.15]`."""
+[--retriangulate-bending=-0.15,0.15]`."""
 
 import numpy as np
 
